@@ -1,0 +1,39 @@
+//! fresco-core: the vocabulary every fresco stage shares.
+//!
+//! - [`Mesh`] (`mesh.rs`): indexed triangles with optional per-vertex normals and colours,
+//!   per-corner UVs (seams allowed) and face groups; `Topology` (`topology.rs`): adjacency,
+//!   connected components, boundary loops, Euler characteristic and genus.
+//! - [`Camera`] (`camera.rs`): COLMAP's camera models (ids and parameter order), projection,
+//!   distortion and its iterative inverse, analytic Jacobians for bundle adjustment.
+//! - [`Rigid3`], [`CamFromWorld`], [`WorldFromCam`], [`Sim3`] (`pose.rs`): rigid and similarity
+//!   transforms with the direction of the mapping named in the type.
+//! - [`Reconstruction`] (`reconstruction.rs`): cameras, images with poses and keypoints, 3D points with tracks.
+//! - `raster.rs`: the one software rasteriser (z-buffer, face ids, perspective-correct attributes).
+//! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
+//! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
+//!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - [`FormatError`] (`error.rs`): what was wrong with a file and where.
+
+pub mod camera;
+pub mod colmap;
+pub mod error;
+pub mod gltf;
+pub mod knn;
+pub mod mesh;
+pub mod middlebury;
+pub mod obj;
+pub mod photo;
+pub mod ply;
+pub mod pose;
+pub mod raster;
+pub mod reconstruction;
+pub mod topology;
+
+pub use camera::{Camera, CameraModel};
+pub use error::FormatError;
+pub use mesh::Mesh;
+pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
+pub use reconstruction::{Image, Point3D, Reconstruction, TrackElement};
+
+/// Re-exported so that every crate names the same nalgebra.
+pub use nalgebra;

@@ -1,0 +1,6 @@
+//! fresco-sfm: photos to cameras and a sparse point cloud (paper 003, section 3).
+//!
+//! Will hold: SIFT-like features (DoG scale space, 128-D descriptors), descriptor matching,
+//! geometric verification (fundamental, essential, homography) inside one generic RANSAC,
+//! EXIF focal priors, the view graph, track building, incremental mapping (initial pair, PnP,
+//! triangulation, retriangulation, filtering) and bundle adjustment with a Schur complement.
