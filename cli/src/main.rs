@@ -1,5 +1,113 @@
-//! The `fresco` command line: argument parsing, progress and exit codes; no algorithms.
+//! The `fresco` command line: argument parsing, progress bars, summaries and exit codes.
+//! No algorithms live here; each subcommand is a module that calls one library function.
+//!
+//! Every subcommand returns a JSON summary; `--json` prints it on stdout, otherwise a short
+//! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
-fn main() {
-    println!("fresco {}", env!("CARGO_PKG_VERSION"));
+mod progress;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "fresco",
+    version,
+    about = "Photos to textured 3D models, and the texture tools around them"
+)]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    /// No progress bars, only errors.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// Print a machine-readable JSON summary on stdout.
+    #[arg(long, global = true)]
+    json: bool,
+    /// More log output on stderr (-v info, -vv debug).
+    #[arg(long, short, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {}
+
+/// Everything a subcommand needs from the global flags.
+pub struct Context {
+    pub quiet: bool,
+    pub json: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose, cli.quiet);
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
+            eprintln!("error: cannot start {n} threads: {e}");
+            return ExitCode::from(2);
+        }
+    }
+    let ctx = Context {
+        quiet: cli.quiet,
+        json: cli.json,
+    };
+    let result: anyhow::Result<serde_json::Value> = match cli.command {};
+    match result {
+        Ok(summary) => {
+            print_summary(&ctx, &summary);
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_logging(verbose: u8, quiet: bool) {
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, _) => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+/// `--json`: the summary as one JSON document on stdout; otherwise `key: value` lines.
+fn print_summary(ctx: &Context, summary: &serde_json::Value) {
+    if ctx.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(summary).unwrap_or_default()
+        );
+    } else if !ctx.quiet {
+        print_human(summary, 0);
+    }
+}
+
+fn print_human(value: &serde_json::Value, indent: usize) {
+    if let serde_json::Value::Object(map) = value {
+        for (k, v) in map {
+            match v {
+                serde_json::Value::Object(_) => {
+                    println!("{:indent$}{k}:", "");
+                    print_human(v, indent + 2);
+                }
+                _ => println!("{:indent$}{k}: {v}", ""),
+            }
+        }
+    }
 }

@@ -12,6 +12,7 @@
 //! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
 //! - [`FormatError`] (`error.rs`): what was wrong with a file and where.
 
 pub mod camera;
@@ -25,6 +26,7 @@ pub mod obj;
 pub mod photo;
 pub mod ply;
 pub mod pose;
+pub mod progress;
 pub mod raster;
 pub mod reconstruction;
 pub mod topology;
@@ -33,6 +35,7 @@ pub use camera::{Camera, CameraModel};
 pub use error::FormatError;
 pub use mesh::Mesh;
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
+pub use progress::{NoProgress, Progress};
 pub use reconstruction::{Image, Point3D, Reconstruction, TrackElement};
 
 /// Re-exported so that every crate names the same nalgebra.
