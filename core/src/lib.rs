@@ -33,10 +33,11 @@ pub mod topology;
 
 pub use camera::{Camera, CameraModel};
 pub use error::FormatError;
-pub use mesh::Mesh;
+pub use mesh::{Aabb, Mesh, MeshError};
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
 pub use progress::{NoProgress, Progress};
 pub use reconstruction::{Image, Point3D, Reconstruction, TrackElement};
+pub use topology::Topology;
 
 /// Re-exported so that every crate names the same nalgebra.
 pub use nalgebra;
