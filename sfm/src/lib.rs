@@ -4,3 +4,13 @@
 //! geometric verification (fundamental, essential, homography) inside one generic RANSAC,
 //! EXIF focal priors, the view graph, track building, incremental mapping (initial pair, PnP,
 //! triangulation, retriangulation, filtering) and bundle adjustment with a Schur complement.
+//!
+//! - `bundle.rs`: [`bundle::bundle_adjust`] over a [`bundle::BundleSetup`] (global or local),
+//!   Levenberg–Marquardt with the Schur complement on the points, robust losses (`loss.rs`).
+//! - `synthetic.rs`: problems with known answers for tests and benchmarks.
+
+pub mod bundle;
+mod camera_model;
+pub mod evaluate;
+pub mod loss;
+pub mod synthetic;
