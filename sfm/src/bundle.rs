@@ -522,7 +522,14 @@ struct BlockPattern {
     /// (row-major, size_a x size_b) in the value array.
     rows: Vec<Vec<(usize, usize)>>,
     len: usize,
+    /// With few groups, a dense `n_groups^2` table of slots (`usize::MAX` where no block):
+    /// the lookup is the innermost operation of the Schur complement.
+    table: Vec<usize>,
+    n_groups: usize,
 }
+
+/// Largest group count for the dense slot table (2048^2 entries = 32 MB).
+const DENSE_SLOT_TABLE_MAX_GROUPS: usize = 2048;
 
 impl BlockPattern {
     fn build(problem: &Problem) -> Self {
@@ -571,10 +578,28 @@ impl BlockPattern {
             rows[a].push((b, len));
             len += problem.group_size[a] * problem.group_size[b];
         }
-        BlockPattern { rows, len }
+        let mut table = Vec::new();
+        if n_groups <= DENSE_SLOT_TABLE_MAX_GROUPS {
+            table = vec![usize::MAX; n_groups * n_groups];
+            for (a, row) in rows.iter().enumerate() {
+                for &(b, slot) in row {
+                    table[a * n_groups + b] = slot;
+                }
+            }
+        }
+        BlockPattern {
+            rows,
+            len,
+            table,
+            n_groups,
+        }
     }
 
+    #[inline]
     fn slot(&self, a: usize, b: usize) -> usize {
+        if !self.table.is_empty() {
+            return self.table[a * self.n_groups + b];
+        }
         let row = &self.rows[a];
         let i = row
             .binary_search_by(|e| e.0.cmp(&b))
@@ -752,25 +777,16 @@ fn linearise(problem: &Problem, pattern: &BlockPattern, state: &State, loss: Los
                     .zip(&obs[problem.point_obs[p]..problem.point_obs[p + 1]])
                 {
                     let (parts, np) = obs_parts(problem, o);
-                    let jtj = l.jc.transpose() * l.jc;
-                    let jtr = l.jc.transpose() * l.r;
+                    let jt = l.jc.transpose();
+                    let jtr = jt * l.r;
                     for &(ga, ca, wa) in &parts[..np] {
                         for i in 0..wa {
                             bc[problem.group_offset[ga] + i] -= jtr[ca + i];
                         }
                         for &(gb, cb, wb) in &parts[..np] {
                             if ga <= gb {
-                                add_block(
-                                    &mut u,
-                                    pattern.slot(ga, gb),
-                                    wb,
-                                    &jtj,
-                                    ca,
-                                    cb,
-                                    wa,
-                                    wb,
-                                    1.0,
-                                );
+                                let slot = pattern.slot(ga, gb);
+                                accumulate(&mut u, slot, wb, &jt, ca, wa, &jt, cb, wb, 1.0);
                             }
                         }
                     }
@@ -801,23 +817,31 @@ fn linearise(problem: &Problem, pattern: &BlockPattern, state: &State, loss: Los
     }
 }
 
-/// `values[slot..]` (a row-major block with `stride` columns) += `sign * m[ra.., cb..]`.
+/// `values[slot..]` (a row-major block with `stride` columns) += `sign * A[ra.., :] B[rb.., :]^T`
+/// over `wa` rows of A and `wb` rows of B: one block of `J^T J` or of `W V^-1 W^T`, computed
+/// only for the columns an observation really has.
 #[allow(clippy::too_many_arguments)]
-fn add_block(
+#[inline]
+fn accumulate<const K: usize>(
     values: &mut [f64],
     slot: usize,
     stride: usize,
-    m: &SMatrix<f64, MAX_DC, MAX_DC>,
+    a: &SMatrix<f64, MAX_DC, K>,
     ra: usize,
-    cb: usize,
     wa: usize,
+    b: &SMatrix<f64, MAX_DC, K>,
+    rb: usize,
     wb: usize,
     sign: f64,
 ) {
     for i in 0..wa {
         let row = &mut values[slot + i * stride..slot + i * stride + wb];
         for (j, x) in row.iter_mut().enumerate() {
-            *x += sign * m[(ra + i, cb + j)];
+            let mut dot = 0.0;
+            for k in 0..K {
+                dot += a[(ra + i, k)] * b[(rb + j, k)];
+            }
+            *x += sign * dot;
         }
     }
 }
@@ -880,35 +904,19 @@ fn schur(
                     }
                     for j in i..obs.len() {
                         let (pj, nj) = parts[j];
-                        let m = y[i] * w[j].transpose();
                         for &(ga, ca, wa) in &pi[..ni] {
                             for &(gb, cb, wb) in &pj[..nj] {
                                 if ga <= gb {
-                                    add_block(
-                                        &mut s,
-                                        pattern.slot(ga, gb),
-                                        wb,
-                                        &m,
-                                        ca,
-                                        cb,
-                                        wa,
-                                        wb,
-                                        -1.0,
+                                    let slot = pattern.slot(ga, gb);
+                                    accumulate(
+                                        &mut s, slot, wb, &y[i], ca, wa, &w[j], cb, wb, -1.0,
                                     );
                                 }
-                                // The (j, i) term is m^T; it lands in block (gb, ga).
+                                // The (j, i) term, Y_j W_i^T = (Y_i W_j^T)^T, lands in block (gb, ga).
                                 if i != j && gb <= ga {
-                                    let mt = m.transpose();
-                                    add_block(
-                                        &mut s,
-                                        pattern.slot(gb, ga),
-                                        wa,
-                                        &mt,
-                                        cb,
-                                        ca,
-                                        wb,
-                                        wa,
-                                        -1.0,
+                                    let slot = pattern.slot(gb, ga);
+                                    accumulate(
+                                        &mut s, slot, wa, &y[j], cb, wb, &w[i], ca, wa, -1.0,
                                     );
                                 }
                             }
