@@ -192,7 +192,6 @@ pub(crate) fn project_with_jacobians(
 
 /// Normalised image coordinates (z = 1 plane) of a pixel: inverts the linear part, then the
 /// distortion by Newton iterations on `distort(uv) = d`.
-#[allow(dead_code)] // used by triangulation and PnP (next)
 pub(crate) fn unproject(model: CameraModel, p: &[f64], pixel: &Vector2<f64>) -> Vector2<f64> {
     let (fx, fy, cx, cy) = linear_part(model, p);
     let d = Vector2::new((pixel.x - cx) / fx, (pixel.y - cy) / fy);

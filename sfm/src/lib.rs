@@ -7,6 +7,10 @@
 //!
 //! - `bundle.rs`: [`bundle::bundle_adjust`] over a [`bundle::BundleSetup`] (global or local),
 //!   Levenberg–Marquardt with the Schur complement on the points, robust losses (`loss.rs`).
+//! - `tracks.rs`: [`tracks::build_tracks`], union-find over verified matches, inconsistent
+//!   tracks split.
+//! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
+//! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
@@ -14,3 +18,5 @@ mod camera_model;
 pub mod evaluate;
 pub mod loss;
 pub mod synthetic;
+pub mod tracks;
+pub mod triangulation;
