@@ -31,7 +31,7 @@ pub mod raster;
 pub mod reconstruction;
 pub mod topology;
 
-pub use camera::{Camera, CameraModel};
+pub use camera::{Camera, CameraError, CameraModel, Pixel};
 pub use error::FormatError;
 pub use mesh::{Aabb, Mesh, MeshError};
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
