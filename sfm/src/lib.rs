@@ -10,6 +10,7 @@
 //! - `tracks.rs`: [`tracks::build_tracks`], union-find over verified matches, inconsistent
 //!   tracks split.
 //! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
+//! - `pnp.rs`: [`pnp::estimate_pose`], P3P in RANSAC, LM refinement (optionally of focal, k1).
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
@@ -17,6 +18,8 @@ pub mod bundle;
 mod camera_model;
 pub mod evaluate;
 pub mod loss;
+pub mod pnp;
+mod ransac_standin;
 pub mod synthetic;
 pub mod tracks;
 pub mod triangulation;
