@@ -12,6 +12,8 @@
 //! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
 //! - `pnp.rs`: [`pnp::estimate_pose`], P3P in RANSAC, LM refinement (optionally of focal, k1).
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
+//! - `ransac.rs`: the one RANSAC ([`ransac::ransac`] over any [`ransac::Estimator`]), LO-RANSAC
+//!   with MSAC scoring, adaptive iteration count, seeded deterministic sampling.
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
