@@ -21,6 +21,7 @@ mod camera_model;
 pub mod evaluate;
 pub mod loss;
 pub mod pnp;
+pub mod ransac;
 mod ransac_standin;
 pub mod synthetic;
 pub mod tracks;
