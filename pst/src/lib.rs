@@ -1,5 +1,35 @@
-//! fresco-pst: point-sampled textures for meshes too large for memory (paper 000, Boubekeur and Schlick).
+//! fresco-pst: point-sampled textures for meshes too large for memory (paper 000, Boubekeur
+//! and Schlick, "Interactive Out-Of-Core Texturing with Point-Sampled Textures").
 //!
-//! Will hold: out-of-core two-pass m-grid sampling, the k-NN Hermite-kernel colour field,
-//! local up-sampling from per-cell files, LRU down-sampling, editing operations and streaming
-//! application of the texture back onto the full mesh.
+//! A huge surface (PLY/OBJ mesh, polygon soup or point cloud) is sampled out of core into a
+//! small point set ([`sampling::sample`], section 2); the points carry texture channels that
+//! are edited at several scales ([`paint`], [`refine`], [`lru`], section 3); the
+//! point-sampled texture f_S ([`field::Field`], section 4) is applied back to the full mesh
+//! by streaming it ([`apply`], section 5) or exported as an octree texture
+//! ([`octree_texture`]).
+//!
+//! Modules, in pipeline order: `input` (point streams), `mgrid` (the depth-2 multi-grid),
+//! `node_files` (per-1-node files), `cluster` (2-node samples), `sampling`, `samples` (the
+//! in-core set), `index` (nearest neighbours), `field` (the PST), `store` (the PST folder).
+
+// Loops over the 3 axes index several arrays at once; iterator chains would read worse.
+#![allow(clippy::needless_range_loop)]
+
+pub mod cluster;
+pub mod error;
+pub mod field;
+pub mod index;
+pub mod input;
+pub mod mgrid;
+pub mod node_files;
+pub mod samples;
+pub mod sampling;
+pub mod store;
+
+pub use cluster::PositionRule;
+pub use error::{PstError, Result};
+pub use field::{Field, FieldConfig, Kernel};
+pub use input::{MemoryPoints, PointSource, SourcePoint};
+pub use samples::SampleSet;
+pub use sampling::{NodeInfo, Sampling, SamplingConfig, sample};
+pub use store::{Channel, CreateConfig, Pst};
