@@ -174,9 +174,11 @@ struct SampleGrid {
     rows: usize,
     tiles_x: usize,
     tiles_y: usize,
-    /// Ideal-plane position of each sample; NaN for padding and for samples the camera
-    /// model cannot undistort (they see nothing).
-    xy: Vec<[f32; 2]>,
+    /// Ideal-plane position of each sample (x and y stored apart so that the inner loop
+    /// vectorises); NaN for padding and for samples the camera model cannot undistort
+    /// (they see nothing).
+    xs: Vec<f32>,
+    ys: Vec<f32>,
     tile_boxes: Vec<Box2>,
     block_boxes: Vec<Box2>,
     /// Monotone envelopes of the tile columns' x extents (suffix minimum of the minima,
@@ -253,7 +255,8 @@ impl SampleGrid {
             rows,
             tiles_x,
             tiles_y,
-            xy,
+            xs: xy.iter().map(|p| p[0]).collect(),
+            ys: xy.iter().map(|p| p[1]).collect(),
             tile_boxes,
             block_boxes,
             col_lo,
@@ -338,7 +341,8 @@ impl SampleMap {
     /// The ideal-plane position (`x/z`, `y/z`) of the centre of pixel (`x`, `y`), or `None`
     /// when the camera model cannot undistort it.
     pub fn ray(&self, x: u32, y: u32) -> Option<[f64; 2]> {
-        let [u, v] = self.centres.xy[self.centres.index(x as usize, y as usize)];
+        let k = self.centres.index(x as usize, y as usize);
+        let (u, v) = (self.centres.xs[k], self.centres.ys[k]);
         (u.is_finite() && v.is_finite()).then_some([u as f64, v as f64])
     }
 }
@@ -560,14 +564,13 @@ struct Setup {
 fn setup_face(
     mesh: &Mesh,
     face: usize,
-    rotation: &Matrix3<f64>,
-    translation: &Vector3<f64>,
+    cam_positions: &[Vector3<f64>],
     config: &RasterConfig,
     grid_bounds: &Box2,
 ) -> Option<Setup> {
     let ids = mesh.faces[face];
     let world = ids.map(|i| mesh.positions[i as usize]);
-    let v = world.map(|p| rotation * p.coords + translation);
+    let v = ids.map(|i| cam_positions[i as usize]);
     let normal = (v[1] - v[0]).cross(&(v[2] - v[0]));
     let det = normal.dot(&v[0]);
     // Seen edge-on (the plane passes through the camera centre, up to rounding): covers no
@@ -687,9 +690,14 @@ fn rasterise(
 ) -> (Vec<f32>, Vec<u32>) {
     let rotation = cam_from_world.0.rotation.to_rotation_matrix().into_inner();
     let translation = cam_from_world.0.translation;
+    let cam_positions: Vec<Vector3<f64>> = mesh
+        .positions
+        .par_iter()
+        .map(|p| rotation * p.coords + translation)
+        .collect();
     let setups: Vec<Setup> = (0..mesh.faces.len())
         .into_par_iter()
-        .filter_map(|f| setup_face(mesh, f, &rotation, &translation, config, &grid.bounds))
+        .filter_map(|f| setup_face(mesh, f, &cam_positions, config, &grid.bounds))
         .collect();
     let bins = bin_setups(grid, &setups);
     let n_tiles = grid.tiles_x * grid.tiles_y;
@@ -762,36 +770,55 @@ fn raster_tile(
     inv_z: &mut [f32],
     faces: &mut [u32],
 ) {
-    let xy = &grid.xy[tile * SAMPLES_PER_TILE..(tile + 1) * SAMPLES_PER_TILE];
+    let range = tile * SAMPLES_PER_TILE..(tile + 1) * SAMPLES_PER_TILE;
+    let (xs, ys) = (&grid.xs[range.clone()], &grid.ys[range]);
     let blocks = &grid.block_boxes[tile * BLOCKS_PER_TILE..(tile + 1) * BLOCKS_PER_TILE];
     for &si in bin {
         let s = &setups[si as usize];
-        let [e0, e1, e2] = s.edges;
-        let [o0, o1, o2] = s.owns;
-        let p = s.plane;
         for (b, block_box) in blocks.iter().enumerate() {
-            if !boxes_meet(block_box, &s.bbox) {
-                continue;
-            }
-            let range = b * SAMPLES_PER_BLOCK..(b + 1) * SAMPLES_PER_BLOCK;
-            for k in range {
-                let [x, y] = xy[k];
-                let d0 = e0[0] * x + e0[1] * y + e0[2];
-                let d1 = e1[0] * x + e1[1] * y + e1[2];
-                let d2 = e2[0] * x + e2[1] * y + e2[2];
-                let inside = (d0 > 0.0 || (d0 == 0.0 && o0))
-                    && (d1 > 0.0 || (d1 == 0.0 && o1))
-                    && (d2 > 0.0 || (d2 == 0.0 && o2));
-                if !inside {
-                    continue;
-                }
-                let w = p[0] * x + p[1] * y + p[2];
-                if w > inv_z[k] && w <= inv_near {
-                    inv_z[k] = w;
-                    faces[k] = s.face;
-                }
+            if boxes_meet(block_box, &s.bbox) {
+                let r = b * SAMPLES_PER_BLOCK..(b + 1) * SAMPLES_PER_BLOCK;
+                raster_block(
+                    s,
+                    inv_near,
+                    (&xs[r.clone()], &ys[r.clone()]),
+                    &mut inv_z[r.clone()],
+                    &mut faces[r],
+                );
             }
         }
+    }
+}
+
+/// Depth-tests one triangle at the samples of one block. Branch-free over the samples so
+/// that it compiles to SIMD.
+#[inline]
+fn raster_block(
+    s: &Setup,
+    inv_near: f32,
+    (xs, ys): (&[f32], &[f32]),
+    inv_z: &mut [f32],
+    faces: &mut [u32],
+) {
+    let [e0, e1, e2] = s.edges;
+    let [o0, o1, o2] = s.owns;
+    let p = s.plane;
+    let xs: &[f32; SAMPLES_PER_BLOCK] = xs.try_into().expect("block-sized");
+    let ys: &[f32; SAMPLES_PER_BLOCK] = ys.try_into().expect("block-sized");
+    let inv_z: &mut [f32; SAMPLES_PER_BLOCK] = inv_z.try_into().expect("block-sized");
+    let faces: &mut [u32; SAMPLES_PER_BLOCK] = faces.try_into().expect("block-sized");
+    for k in 0..SAMPLES_PER_BLOCK {
+        let (x, y) = (xs[k], ys[k]);
+        let d0 = e0[0] * x + e0[1] * y + e0[2];
+        let d1 = e1[0] * x + e1[1] * y + e1[2];
+        let d2 = e2[0] * x + e2[1] * y + e2[2];
+        let inside = ((d0 > 0.0) | ((d0 == 0.0) & o0))
+            & ((d1 > 0.0) | ((d1 == 0.0) & o1))
+            & ((d2 > 0.0) | ((d2 == 0.0) & o2));
+        let w = p[0] * x + p[1] * y + p[2];
+        let closer = inside & (w > inv_z[k]) & (w <= inv_near);
+        inv_z[k] = if closer { w } else { inv_z[k] };
+        faces[k] = if closer { s.face } else { faces[k] };
     }
 }
 
@@ -854,7 +881,7 @@ fn shade_image(
                         let colour = match faces[k] {
                             NO_FACE => background,
                             f => {
-                                let [x, y] = grid.xy[k];
+                                let (x, y) = (grid.xs[k], grid.ys[k]);
                                 shade_sample(
                                     mesh,
                                     f,
@@ -1369,7 +1396,7 @@ mod tests {
                 }
             }
             let full = mesh(positions.clone(), faces.clone());
-            let mut counts = vec![0u32; grid.xy.len()];
+            let mut counts = vec![0u32; grid.xs.len()];
             for f in &faces {
                 let single = mesh(positions.clone(), vec![*f]);
                 let (_, ids) = rasterise(&single, grid, &identity_pose(), &RasterConfig::default());
@@ -1381,7 +1408,7 @@ mod tests {
             let lo = -0.5 - 1.0 / 32.0;
             let hi = 0.5 - 1.0 / 32.0;
             let mut on_edges = 0;
-            for (k, &[x, y]) in grid.xy.iter().enumerate() {
+            for (k, (&x, &y)) in grid.xs.iter().zip(&grid.ys).enumerate() {
                 if !x.is_finite() {
                     continue;
                 }
