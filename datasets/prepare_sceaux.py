@@ -55,7 +55,7 @@ def main():
     k = [row[:] for row in rows]
     k[0][0], k[0][1], k[0][2] = rows[0][0] * sx, rows[0][1] * sx, (rows[0][2] + 0.5) * sx - 0.5
     k[1][1], k[1][2] = rows[1][1] * sy, (rows[1][2] + 0.5) * sy - 0.5
-    (out / "images/K.txt").write_text("".join(" ".join(f"{v:.6g}" for v in row) + "\n" for row in k))
+    (out / "images/K.txt").write_text("".join(" ".join(f"{v:.10g}" for v in row) + "\n" for row in k))
     shutil.copyfile(source / "Readme.txt", out / "Readme.txt")
     print("K.txt:", k)
 

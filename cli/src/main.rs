@@ -5,6 +5,7 @@
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
 mod progress;
+mod synth;
 
 use std::process::ExitCode;
 
@@ -34,7 +35,11 @@ struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-enum Command {}
+enum Command {
+    /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
+    /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
+    Synth(synth::SynthArgs),
+}
 
 /// Everything a subcommand needs from the global flags.
 pub struct Context {
@@ -58,7 +63,9 @@ fn main() -> ExitCode {
         quiet: cli.quiet,
         json: cli.json,
     };
-    let result: anyhow::Result<serde_json::Value> = match cli.command {};
+    let result: anyhow::Result<serde_json::Value> = match cli.command {
+        Command::Synth(args) => synth::run(args, &ctx),
+    };
     match result {
         Ok(summary) => {
             print_summary(&ctx, &summary);

@@ -1,9 +1,21 @@
 //! fresco-datasets: the data fresco is tested and benchmarked on.
 //!
-//! Will hold: loaders for the bundled real photo sets (templeSparseRing, sceaux_castle),
-//! the synthetic scene generator (procedurally textured shapes rendered from known cameras,
-//! with ground-truth cameras, meshes and masks), and readers for committed reference outputs.
+//! - [`shapes`]: closed test shapes with known genus (sphere, torus, double torus, blob, temple).
+//! - [`albedo`]: a UV-free procedural albedo over 3D positions ([`Albedo`]).
+//! - [`synthetic`]: synthetic scenes with exact ground truth: [`build_scene`], [`render_view`],
+//!   [`write_dataset`] (photos, masks, COLMAP and Middlebury cameras, PLY/GLB mesh).
+//! - [`real`]: the bundled real photo sets, [`temple_sparse_ring`] and [`sceaux_castle`],
+//!   with their ground truth where it exists.
 
+pub mod albedo;
+pub mod real;
 pub mod shapes;
+pub mod synthetic;
 
+pub use albedo::Albedo;
+pub use real::{sceaux_castle, temple_sparse_ring};
 pub use shapes::Shape;
+pub use synthetic::{
+    DatasetSummary, Distortion, Layout, Scene, SceneConfig, SynthError, build_scene, render_view,
+    write_dataset,
+};
