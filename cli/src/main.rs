@@ -50,14 +50,13 @@ pub struct Context {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.verbose, cli.quiet);
-    if let Some(n) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new()
+    if let Some(n) = cli.threads
+        && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
-        {
-            eprintln!("error: cannot start {n} threads: {e}");
-            return ExitCode::from(2);
-        }
+    {
+        eprintln!("error: cannot start {n} threads: {e}");
+        return ExitCode::from(2);
     }
     let ctx = Context {
         quiet: cli.quiet,

@@ -33,7 +33,7 @@ use image::RgbImage;
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::camera::{Camera, CameraModel};
+use crate::camera::{Camera, Pixel};
 use crate::{CamFromWorld, Mesh};
 
 /// Face id of a pixel that sees no face.
@@ -213,8 +213,8 @@ impl SampleGrid {
                     }
                     let px = (c as f64 + 0.5) / s as f64;
                     let py = (r as f64 + 0.5) / s as f64;
-                    if let Some([x, y]) = ideal_from_pixel(camera, px, py) {
-                        *slot = [x as f32, y as f32];
+                    if let Some(ray) = camera.cam_from_image(&Pixel::new(px, py)) {
+                        *slot = [ray.x as f32, ray.y as f32];
                     }
                 }
             });
@@ -430,34 +430,10 @@ fn barycentrics(
 }
 
 fn check_camera(camera: &Camera) -> Result<(), RasterError> {
-    let err = |message: String| RasterError::Camera {
+    camera.validate().map_err(|e| RasterError::Camera {
         camera_id: camera.id,
-        message,
-    };
-    if camera.width == 0 || camera.height == 0 {
-        return Err(err(format!(
-            "image size {}x{} is empty",
-            camera.width, camera.height
-        )));
-    }
-    let expected = match camera.model {
-        CameraModel::SimplePinhole => 3,
-        CameraModel::Pinhole => 4,
-        CameraModel::SimpleRadial => 4,
-        CameraModel::Radial => 5,
-        CameraModel::OpenCv => 8,
-    };
-    if camera.params.len() != expected {
-        return Err(err(format!(
-            "{:?} needs {expected} parameters, got {}",
-            camera.model,
-            camera.params.len()
-        )));
-    }
-    if camera.params.iter().any(|p| !p.is_finite()) {
-        return Err(err("a parameter is not finite".into()));
-    }
-    Ok(())
+        message: e.to_string(),
+    })
 }
 
 fn check_mesh(mesh: &Mesh) -> Result<(), RasterError> {
@@ -968,71 +944,11 @@ fn sample_bilinear(texture: &RgbImage, u: f64, v: f64) -> [f32; 3] {
     out
 }
 
-// ---------------------------------------------------------------------------------------
-// Camera model evaluation used by the sample map (COLMAP's distortion formulas).
-
-/// The ideal-plane position of pixel (`px`, `py`): removes the intrinsics, then inverts the
-/// distortion by Newton's method. `None` when it does not converge (outside the region
-/// where the distortion is invertible).
-fn ideal_from_pixel(camera: &Camera, px: f64, py: f64) -> Option<[f64; 2]> {
-    let p = &camera.params;
-    let (fx, fy, cx, cy) = match camera.model {
-        CameraModel::SimplePinhole | CameraModel::SimpleRadial | CameraModel::Radial => {
-            (p[0], p[0], p[1], p[2])
-        }
-        CameraModel::Pinhole | CameraModel::OpenCv => (p[0], p[1], p[2], p[3]),
-    };
-    let target = [(px - cx) / fx, (py - cy) / fy];
-    let mut x = target;
-    for _ in 0..100 {
-        let (d, j) = distort(camera, x);
-        let r = [d[0] - target[0], d[1] - target[1]];
-        if r[0].abs() < 1e-14 && r[1].abs() < 1e-14 {
-            return Some(x);
-        }
-        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
-        if det.abs() < 1e-12 || !det.is_finite() {
-            return None;
-        }
-        x[0] -= (j[1][1] * r[0] - j[0][1] * r[1]) / det;
-        x[1] -= (-j[1][0] * r[0] + j[0][0] * r[1]) / det;
-    }
-    let (d, _) = distort(camera, x);
-    ((d[0] - target[0]).abs() < 1e-10 && (d[1] - target[1]).abs() < 1e-10).then_some(x)
-}
-
-/// COLMAP's distortion of an ideal-plane point and its 2x2 Jacobian.
-fn distort(camera: &Camera, x: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]) {
-    let p = &camera.params;
-    let (k1, k2, p1, p2) = match camera.model {
-        CameraModel::SimplePinhole | CameraModel::Pinhole => (0.0, 0.0, 0.0, 0.0),
-        CameraModel::SimpleRadial => (p[3], 0.0, 0.0, 0.0),
-        CameraModel::Radial => (p[3], p[4], 0.0, 0.0),
-        CameraModel::OpenCv => (p[4], p[5], p[6], p[7]),
-    };
-    let [u, v] = x;
-    let r2 = u * u + v * v;
-    let radial = k1 * r2 + k2 * r2 * r2;
-    let d_radial = k1 + 2.0 * k2 * r2; // d(radial)/d(r2)
-    let du = u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u);
-    let dv = v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v);
-    let j = [
-        [
-            1.0 + radial + u * d_radial * 2.0 * u + 2.0 * p1 * v + p2 * 6.0 * u,
-            u * d_radial * 2.0 * v + 2.0 * p1 * u + p2 * 2.0 * v,
-        ],
-        [
-            v * d_radial * 2.0 * u + 2.0 * p2 * v + p1 * 2.0 * u,
-            1.0 + radial + v * d_radial * 2.0 * v + 2.0 * p2 * u + p1 * 6.0 * v,
-        ],
-    ];
-    ([u + du, v + dv], j)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::Rigid3;
+    use crate::camera::CameraModel;
     use nalgebra::UnitQuaternion;
 
     /// SplitMix64: a tiny deterministic generator for test geometry.
@@ -1093,15 +1009,10 @@ mod tests {
         (b0 >= 0.0 && b1 >= 0.0 && b2 >= 0.0 && t > 0.0).then_some((t, [b0, b1, b2]))
     }
 
-    /// World point to pixel through COLMAP's forward model (distortion applied).
+    /// World point to pixel through the camera model (distortion applied).
     fn project(camera: &Camera, pose: &CamFromWorld, p: &Point3<f64>) -> [f64; 2] {
-        let x = pose.0.rotation * p.coords + pose.0.translation;
-        let (d, _) = distort(camera, [x.x / x.z, x.y / x.z]);
-        let q = &camera.params;
-        match camera.model {
-            CameraModel::Pinhole | CameraModel::OpenCv => [q[0] * d[0] + q[2], q[1] * d[1] + q[3]],
-            _ => [q[0] * d[0] + q[1], q[0] * d[1] + q[2]],
-        }
+        let pixel = camera.image_from_world(pose, p).unwrap();
+        [pixel.x, pixel.y]
     }
 
     #[test]
@@ -1205,8 +1116,10 @@ mod tests {
         let mut checked = 0;
         for _ in 0..2000 {
             let (x, y) = (rng.next() % 120, rng.next() % 90);
-            let ray = ideal_from_pixel(&cam, x as f64 + 0.5, y as f64 + 0.5).unwrap();
-            let d = Vector3::new(ray[0], ray[1], 1.0);
+            let ray = cam
+                .cam_from_image(&Pixel::new(x as f64 + 0.5, y as f64 + 0.5))
+                .unwrap();
+            let d = Vector3::new(ray.x, ray.y, 1.0);
             let mut hits: Vec<(f64, usize, f64)> = cam_tris
                 .iter()
                 .enumerate()
@@ -1462,15 +1375,12 @@ mod tests {
             for y in (0..120).step_by(7) {
                 for x in (0..160).step_by(5) {
                     let ray = map.ray(x, y).unwrap();
-                    let p = cam.params.clone();
-                    let (d, _) = distort(&cam, ray);
-                    let (fx, fy, cx, cy) = match cam.model {
-                        CameraModel::OpenCv => (p[0], p[1], p[2], p[3]),
-                        _ => (p[0], p[0], p[1], p[2]),
-                    };
+                    let pixel = cam
+                        .image_from_cam(&Point3::new(ray[0], ray[1], 1.0))
+                        .unwrap();
                     // f32 storage of the ray: 1e-7 relative of coordinates ~1 times f ~120.
-                    assert!((d[0] * fx + cx - (x as f64 + 0.5)).abs() < 1e-4);
-                    assert!((d[1] * fy + cy - (y as f64 + 0.5)).abs() < 1e-4);
+                    assert!((pixel.x - (x as f64 + 0.5)).abs() < 1e-4);
+                    assert!((pixel.y - (y as f64 + 0.5)).abs() < 1e-4);
                 }
             }
             let pose = CamFromWorld(Rigid3 {

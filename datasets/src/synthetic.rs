@@ -287,10 +287,8 @@ fn check_config(config: &SceneConfig) -> Result<(), SynthError> {
             config.detail
         ));
     }
-    if let Some(f) = config.focal {
-        if !(f.is_finite() && f > 0.0) {
-            return fail(format!("focal length {f} is not a positive number"));
-        }
+    if let Some(f) = config.focal.filter(|f| !(f.is_finite() && *f > 0.0)) {
+        return fail(format!("focal length {f} is not a positive number"));
     }
     let coefficients: Vec<f64> = match config.distortion {
         Distortion::None => vec![],
@@ -561,7 +559,7 @@ fn observe(
     samples: &[SurfaceSample],
 ) -> Vec<(usize, [f64; 2])> {
     let pose = &view.cam_from_world;
-    let centre = -(pose.0.rotation.inverse() * pose.0.translation);
+    let centre = pose.center().coords;
     let focal = scene.camera.params[0];
     samples
         .par_iter()
@@ -570,9 +568,9 @@ fn observe(
             if s.normal.dot(&(centre - s.position.coords)) <= 0.0 {
                 return None;
             }
-            let z = (pose.0.rotation * s.position.coords + pose.0.translation).z;
-            let pixel = image_from_world(&scene.camera, pose, &s.position)?;
-            let (x, y) = (pixel[0].floor(), pixel[1].floor());
+            let z = pose.0.transform_point(&s.position).z;
+            let pixel = scene.camera.image_from_world(pose, &s.position)?;
+            let (x, y) = (pixel.x.floor(), pixel.y.floor());
             if x < 0.0
                 || y < 0.0
                 || x >= scene.camera.width as f64
@@ -582,30 +580,9 @@ fn observe(
             }
             let seen = visibility.depth_at(x as u32, y as u32) as f64;
             let tolerance = (3.0 * z / focal).max(0.005 * z);
-            (seen >= z - tolerance).then_some((i, pixel))
+            (seen >= z - tolerance).then_some((i, [pixel.x, pixel.y]))
         })
         .collect()
-}
-
-/// World point to pixel through the camera model (COLMAP's SIMPLE_PINHOLE, SIMPLE_RADIAL,
-/// RADIAL as the synthetic cameras use them); `None` behind the camera.
-fn image_from_world(camera: &Camera, pose: &CamFromWorld, p: &Point3<f64>) -> Option<[f64; 2]> {
-    let x = pose.0.rotation * p.coords + pose.0.translation;
-    if x.z <= 0.0 {
-        return None;
-    }
-    let (u, v) = (x.x / x.z, x.y / x.z);
-    let q = &camera.params;
-    let r2 = u * u + v * v;
-    let radial = match camera.model {
-        CameraModel::SimpleRadial => q[3] * r2,
-        CameraModel::Radial => q[3] * r2 + q[4] * r2 * r2,
-        _ => 0.0,
-    };
-    Some([
-        q[0] * u * (1.0 + radial) + q[1],
-        q[0] * v * (1.0 + radial) + q[2],
-    ])
 }
 
 /// What [`write_dataset`] wrote.

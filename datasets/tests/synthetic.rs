@@ -59,27 +59,11 @@ fn read_cameras(sparse: &Path) -> (Camera, Vec<(String, CamFromWorld)>) {
     (camera, poses)
 }
 
-/// Pixel of a world point through COLMAP's radial models.
+/// Depth and pixel of a world point through the camera model.
 fn project(camera: &Camera, pose: &CamFromWorld, p: &Point3<f64>) -> Option<(f64, [f64; 2])> {
-    let x = pose.0.rotation * p.coords + pose.0.translation;
-    if x.z <= 0.0 {
-        return None;
-    }
-    let (u, v) = (x.x / x.z, x.y / x.z);
-    let q = &camera.params;
-    let r2 = u * u + v * v;
-    let radial = match camera.model {
-        CameraModel::SimpleRadial => q[3] * r2,
-        CameraModel::Radial => q[3] * r2 + q[4] * r2 * r2,
-        _ => 0.0,
-    };
-    Some((
-        x.z,
-        [
-            q[0] * u * (1.0 + radial) + q[1],
-            q[0] * v * (1.0 + radial) + q[2],
-        ],
-    ))
+    let z = pose.0.transform_point(p).z;
+    let pixel = camera.image_from_world(pose, p)?;
+    Some((z, [pixel.x, pixel.y]))
 }
 
 #[test]
