@@ -10,10 +10,8 @@
 use std::collections::BTreeMap;
 
 use fresco_core::{Reconstruction, Sim3};
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use serde::Serialize;
-
-use crate::camera_model;
 
 /// Figures of one comparison.
 #[derive(Clone, Debug, Serialize)]
@@ -58,51 +56,6 @@ fn centre(image: &fresco_core::Image) -> Vector3<f64> {
     -(p.rotation.inverse() * p.translation)
 }
 
-/// Least-squares similarity `dst ≈ s R src + t` (Umeyama 1991, eq. 40–42).
-///
-/// Stand-in for core's `Sim3::umeyama` (branch core-cam), to be replaced when it lands.
-pub(crate) fn umeyama(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Option<Sim3> {
-    let n = src.len();
-    if n < 3 || dst.len() != n {
-        return None;
-    }
-    let mu_s = src.iter().sum::<Vector3<f64>>() / n as f64;
-    let mu_d = dst.iter().sum::<Vector3<f64>>() / n as f64;
-    let mut cov = Matrix3::zeros();
-    let mut var_s = 0.0;
-    for (s, d) in src.iter().zip(dst) {
-        cov += (d - mu_d) * (s - mu_s).transpose();
-        var_s += (s - mu_s).norm_squared();
-    }
-    cov /= n as f64;
-    var_s /= n as f64;
-    if var_s <= f64::EPSILON {
-        return None;
-    }
-    let svd = cov.svd(true, true);
-    let (u, vt) = (svd.u?, svd.v_t?);
-    let mut d = Matrix3::identity();
-    if (u.determinant() * vt.determinant()) < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let mut sv = svd.singular_values;
-    // Degenerate if the centres are (nearly) collinear: two singular values vanish.
-    sv.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
-    if sv[1] <= 1e-12 * sv[0].max(f64::MIN_POSITIVE) {
-        return None;
-    }
-    let r = u * d * vt;
-    let trace: f64 = (0..3).map(|k| svd.singular_values[k] * d[(k, k)]).sum();
-    let scale = trace / var_s;
-    let rotation = UnitQuaternion::from_matrix(&r);
-    let translation = mu_d - scale * (rotation * mu_s);
-    Some(Sim3 {
-        scale,
-        rotation,
-        translation,
-    })
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -133,7 +86,11 @@ pub fn mean_reprojection_error(rec: &Reconstruction) -> f64 {
             };
             let pose = &image.cam_from_world.0;
             let x = pose.rotation * point.position.coords + pose.translation;
-            if let Some(p) = camera_model::project(cam.model, &cam.params, &x) {
+            if let Some(p) = cam
+                .model
+                .image_from_cam(&cam.params, &nalgebra::Point3::from(x))
+                .map(|p| p.coords)
+            {
                 sum += (p - kp.coords).norm();
                 n += 1;
             }
@@ -163,7 +120,10 @@ pub fn evaluate_poses(
     }
     let src: Vec<Vector3<f64>> = pairs.iter().map(|(m, _)| centre(m)).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|(_, r)| centre(r)).collect();
-    let sim = umeyama(&src, &dst).ok_or(EvaluateError::Degenerate)?;
+    let as_points = |v: &[Vector3<f64>]| v.iter().map(|&c| c.into()).collect::<Vec<_>>();
+    let sim = Sim3::umeyama(&as_points(&src), &as_points(&dst), true)
+        .filter(|s| s.scale.is_finite() && s.scale > 0.0)
+        .ok_or(EvaluateError::Degenerate)?;
     let ref_centres: Vec<Vector3<f64>> = reference.images.values().map(centre).collect();
     let mut diameter: f64 = 0.0;
     for (i, a) in ref_centres.iter().enumerate() {
@@ -190,11 +150,10 @@ pub fn evaluate_poses(
         if let (Some(cm), Some(cr)) = (
             model.cameras.get(&m.camera_id),
             reference.cameras.get(&r.camera_id),
-        ) && cm.params.len() == camera_model::param_count(cm.model)
-            && cr.params.len() == camera_model::param_count(cr.model)
+        ) && cm.params.len() == cm.model.num_params()
+            && cr.params.len() == cr.model.num_params()
         {
-            let fm = camera_model::mean_focal(cm.model, &cm.params);
-            let fr = camera_model::mean_focal(cr.model, &cr.params);
+            let (fm, fr) = (cm.focal(), cr.focal());
             focal.push((fm - fr).abs() / fr);
         }
     }
@@ -221,6 +180,7 @@ pub fn evaluate_poses(
 mod tests {
     use super::*;
     use crate::synthetic::{SyntheticConfig, synthetic_reconstruction};
+    use nalgebra::UnitQuaternion;
 
     /// A reconstruction moved by a known similarity evaluates to zero error, and Umeyama
     /// recovers the similarity (to 1e-9: exact data, rounding only).

@@ -17,7 +17,6 @@
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
-mod camera_model;
 pub mod evaluate;
 pub mod loss;
 pub mod pnp;

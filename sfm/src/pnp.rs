@@ -11,7 +11,6 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix4, Owned, UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
-use crate::camera_model;
 use crate::ransac_standin::{Estimator, RansacConfig, ransac};
 
 /// PnP settings.
@@ -302,7 +301,11 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for PoseRefinement<'_> {
         let mut out = DVector::zeros(2 * self.pixels.len());
         for (i, (px, w)) in self.pixels.iter().zip(&self.world).enumerate() {
             let xc = r * w + t;
-            let (proj, _, _) = camera_model::project_with_jacobians(self.camera.model, &p, &xc)?;
+            let (proj, _, _) = self
+                .camera
+                .model
+                .image_from_cam_jacobian(&p, &nalgebra::Point3::from(xc))
+                .map(|j| (j.pixel.coords, j.d_point, j.d_params))?;
             out[2 * i] = proj.x - px.x;
             out[2 * i + 1] = proj.y - px.y;
         }
@@ -318,7 +321,11 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for PoseRefinement<'_> {
         for (i, wp) in self.world.iter().enumerate() {
             let rx = r * wp;
             let xc = rx + t;
-            let (_, dx, dp) = camera_model::project_with_jacobians(self.camera.model, &p, &xc)?;
+            let (_, dx, dp) = self
+                .camera
+                .model
+                .image_from_cam_jacobian(&p, &nalgebra::Point3::from(xc))
+                .map(|j| (j.pixel.coords, j.d_point, j.d_params))?;
             let d_rot = -(dx * rx.cross_matrix()) * jl;
             for row in 0..2 {
                 for c in 0..3 {
@@ -344,10 +351,9 @@ fn refine_pose(
 ) -> (CamFromWorld, Vec<f64>) {
     let mut free = Vec::new();
     if refine_intrinsics {
-        let roles = camera_model::param_roles(camera.model);
-        free.extend_from_slice(roles.focal);
+        free.extend_from_slice(camera.model.focal_idxs());
         // Only the first radial term: a few hundred points of one image do not fix more.
-        free.extend(roles.extra.first());
+        free.extend(camera.model.extra_idxs().first());
     }
     let mut x = DVector::zeros(6 + free.len());
     x[3] = pose.0.translation.x;
@@ -392,8 +398,8 @@ fn focal_hypotheses(prior: f64) -> Vec<f64> {
 
 fn with_focal(camera: &Camera, f: f64) -> Camera {
     let mut c = camera.clone();
-    let old = camera_model::mean_focal(camera.model, &camera.params);
-    for &i in camera_model::param_roles(camera.model).focal {
+    let old = camera.focal();
+    for &i in camera.model.focal_idxs() {
         c.params[i] *= f / old;
     }
     c
@@ -411,7 +417,7 @@ pub fn estimate_pose(
     if n < needed {
         return Err(PnpError::TooFewCorrespondences { got: n, needed });
     }
-    let prior = camera_model::mean_focal(camera.model, &camera.params);
+    let prior = camera.focal();
     let focals = if config.estimate_focal {
         focal_hypotheses(prior)
     } else {
@@ -420,10 +426,15 @@ pub fn estimate_pose(
     let mut best: Option<(Camera, CamFromWorld, usize)> = None;
     for (h, &f) in focals.iter().enumerate() {
         let cam = with_focal(camera, f);
+        // Keypoints outside the distortion's invertible range carry no ray: left out.
         let data: Vec<Correspondence> = (0..n)
-            .map(|i| Correspondence {
-                normalised: camera_model::unproject(cam.model, &cam.params, &pixels[i]),
-                world: world[i],
+            .filter_map(|i| {
+                Some(Correspondence {
+                    normalised: cam
+                        .cam_from_image(&nalgebra::Point2::from(pixels[i]))?
+                        .coords,
+                    world: world[i],
+                })
             })
             .collect();
         let rc = RansacConfig {
@@ -501,7 +512,10 @@ fn pixel_error(
     w: &Vector3<f64>,
 ) -> Option<f64> {
     let xc = pose.0.rotation * w + pose.0.translation;
-    camera_model::project(cam.model, &cam.params, &xc).map(|p| (p - px).norm())
+    cam.model
+        .image_from_cam(&cam.params, &nalgebra::Point3::from(xc))
+        .map(|p| p.coords)
+        .map(|p| (p - px).norm())
 }
 
 fn inliers_of(
@@ -554,7 +568,11 @@ mod tests {
                 rng.uniform() - 0.5,
             ) * 2.0;
             let xc = pose.0.rotation * w + pose.0.translation;
-            let Some(p) = camera_model::project(cam.model, &cam.params, &xc) else {
+            let Some(p) = cam
+                .model
+                .image_from_cam(&cam.params, &nalgebra::Point3::from(xc))
+                .map(|p| p.coords)
+            else {
                 continue;
             };
             let p = if rng.uniform() < outliers {

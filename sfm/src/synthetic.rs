@@ -2,14 +2,10 @@
 //! bundle adjustment, triangulation and PnP: cameras on a spherical band looking at the
 //! origin, points in a ball, exact projections plus optional Gaussian noise and outliers.
 
-use std::collections::BTreeMap;
-
 use fresco_core::{
     CamFromWorld, Camera, CameraModel, Image, Point3D, Reconstruction, Rigid3, TrackElement,
 };
 use nalgebra::{Point2, Point3, Rotation3, UnitQuaternion, Vector3};
-
-use crate::camera_model;
 
 /// A tiny deterministic generator (SplitMix64), so that problems are the same on every run.
 #[derive(Clone, Debug)]
@@ -166,7 +162,11 @@ pub fn synthetic_reconstruction(config: &SyntheticConfig) -> (Reconstruction, Ve
             let image = &rec.images[&id];
             let cam = &rec.cameras[&image.camera_id];
             let xc = image.cam_from_world.0.rotation * x + image.cam_from_world.0.translation;
-            if let Some(p) = camera_model::project(cam.model, &cam.params, &xc) {
+            if let Some(p) = cam
+                .model
+                .image_from_cam(&cam.params, &nalgebra::Point3::from(xc))
+                .map(|p| p.coords)
+            {
                 let margin = 2.0;
                 if p.x > margin
                     && p.y > margin
@@ -246,14 +246,10 @@ pub fn perturb(
     for point in rec.points3d.values_mut() {
         point.position += gauss3(&mut rng) * point_dist / 3f64.sqrt();
     }
-    let pp: BTreeMap<u32, &'static [usize]> = rec
-        .cameras
-        .iter()
-        .map(|(&id, c)| (id, camera_model::param_roles(c.model).principal_point))
-        .collect();
-    for (id, cam) in rec.cameras.iter_mut() {
+    for cam in rec.cameras.values_mut() {
+        let pp = cam.model.principal_point_idxs();
         for (k, v) in cam.params.iter_mut().enumerate() {
-            if !pp[id].contains(&k) {
+            if !pp.contains(&k) {
                 *v *= 1.0 + intrinsic_rel * rng.normal();
             }
         }

@@ -9,8 +9,6 @@ use fresco_core::{CamFromWorld, Camera};
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Vector2, Vector3};
 use serde::Serialize;
 
-use crate::camera_model;
-
 /// Triangulation settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct TriangulationConfig {
@@ -65,15 +63,6 @@ pub struct Triangulated {
     pub angle_deg: f64,
 }
 
-fn projection_matrix(pose: &CamFromWorld) -> Matrix3x4<f64> {
-    let r = pose.0.rotation.to_rotation_matrix();
-    let mut p = Matrix3x4::zeros();
-    p.fixed_view_mut::<3, 3>(0, 0).copy_from(r.matrix());
-    p.fixed_view_mut::<3, 1>(0, 3)
-        .copy_from(&pose.0.translation);
-    p
-}
-
 /// Camera centre in world coordinates.
 pub fn camera_centre(pose: &CamFromWorld) -> Vector3<f64> {
     -(pose.0.rotation.inverse() * pose.0.translation)
@@ -119,7 +108,10 @@ pub fn ray_angle(c1: &Vector3<f64>, c2: &Vector3<f64>, x: &Vector3<f64>) -> f64 
 /// Reprojection error of `x` in a view, pixels; `None` if behind the camera.
 pub fn reprojection_error(view: &View, x: &Vector3<f64>) -> Option<f64> {
     let xc = view.cam_from_world.0.rotation * x + view.cam_from_world.0.translation;
-    camera_model::project(view.camera.model, &view.camera.params, &xc)
+    view.camera
+        .model
+        .image_from_cam(&view.camera.params, &nalgebra::Point3::from(xc))
+        .map(|p| p.coords)
         .map(|p| (p - view.pixel).norm())
 }
 
@@ -139,8 +131,11 @@ pub fn refine_point(views: &[View], x: Vector3<f64>) -> Vector3<f64> {
         for v in views {
             let r = v.cam_from_world.0.rotation;
             let xc = r * x + v.cam_from_world.0.translation;
-            let Some((pix, dx, _)) =
-                camera_model::project_with_jacobians(v.camera.model, &v.camera.params, &xc)
+            let Some((pix, dx, _)) = v
+                .camera
+                .model
+                .image_from_cam_jacobian(&v.camera.params, &nalgebra::Point3::from(xc))
+                .map(|j| (j.pixel.coords, j.d_point, j.d_params))
             else {
                 return x;
             };
@@ -197,17 +192,16 @@ fn max_angle(views: &[View], idx: &[usize], x: &Vector3<f64>) -> f64 {
 }
 
 fn dlt_of(views: &[View], idx: &[usize]) -> Option<Vector3<f64>> {
-    let rows: Vec<(Matrix3x4<f64>, Vector2<f64>)> = idx
+    let rows: Option<Vec<(Matrix3x4<f64>, Vector2<f64>)>> = idx
         .iter()
         .map(|&i| {
             let v = &views[i];
-            (
-                projection_matrix(v.cam_from_world),
-                camera_model::unproject(v.camera.model, &v.camera.params, &v.pixel),
-            )
+            // A pixel outside the distortion's invertible range has no ray.
+            let ray = v.camera.cam_from_image(&nalgebra::Point2::from(v.pixel))?;
+            Some((v.cam_from_world.0.to_matrix(), ray.coords))
         })
         .collect();
-    triangulate_dlt(&rows)
+    triangulate_dlt(&rows?)
 }
 
 /// Most two-view hypotheses tried for a long track (the pairs are spread over the track).
@@ -325,7 +319,10 @@ mod tests {
 
     fn pixel(cam: &Camera, pose: &CamFromWorld, x: &Vector3<f64>) -> Vector2<f64> {
         let xc = pose.0.rotation * x + pose.0.translation;
-        camera_model::project(cam.model, &cam.params, &xc).unwrap()
+        cam.model
+            .image_from_cam(&cam.params, &nalgebra::Point3::from(xc))
+            .map(|p| p.coords)
+            .unwrap()
     }
 
     /// Exact pixels through a distorted camera: the point is recovered to 1e-9 (rounding).
@@ -444,7 +441,11 @@ mod tests {
             .iter()
             .map(|p| {
                 let xc = p.0.rotation * behind + p.0.translation;
-                let px = camera_model::project(cam.model, &cam.params, &(-xc)).unwrap();
+                let px = cam
+                    .model
+                    .image_from_cam(&cam.params, &nalgebra::Point3::from(-xc))
+                    .map(|p| p.coords)
+                    .unwrap();
                 View {
                     camera: &cam,
                     cam_from_world: p,
