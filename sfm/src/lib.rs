@@ -21,7 +21,6 @@ pub mod evaluate;
 pub mod loss;
 pub mod pnp;
 pub mod ransac;
-mod ransac_standin;
 pub mod synthetic;
 pub mod tracks;
 pub mod triangulation;

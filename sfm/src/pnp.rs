@@ -11,7 +11,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix4, Owned, UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
-use crate::ransac_standin::{Estimator, RansacConfig, ransac};
+use crate::ransac::{Estimator, RansacConfig, ransac};
 
 /// PnP settings.
 #[derive(Clone, Debug, Serialize)]
@@ -443,8 +443,9 @@ pub fn estimate_pose(
             min_iterations: 50,
             max_iterations: config.max_iterations,
             seed: config.seed.wrapping_add(h as u64),
+            ..RansacConfig::default()
         };
-        if let Some(report) = ransac(&P3pEstimator { focal: f }, &data, &rc)
+        if let Ok(report) = ransac(&P3pEstimator { focal: f }, &data, &rc)
             && best.as_ref().is_none_or(|b| report.num_inliers > b.2)
         {
             best = Some((cam, report.model, report.num_inliers));
