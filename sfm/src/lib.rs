@@ -10,6 +10,8 @@
 //! - `tracks.rs`: [`tracks::build_tracks`], union-find over verified matches, inconsistent
 //!   tracks split.
 //! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
+//! - `mapper.rs`: [`mapper::map`], incremental mapping into one or more models, degenerate input
+//!   reported.
 //! - `pnp.rs`: [`pnp::estimate_pose`], P3P in RANSAC, LM refinement (optionally of focal, k1).
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `ransac.rs`: the one RANSAC ([`ransac::ransac`] over any [`ransac::Estimator`]), LO-RANSAC
@@ -19,6 +21,7 @@
 pub mod bundle;
 pub mod evaluate;
 pub mod loss;
+pub mod mapper;
 pub mod pnp;
 pub mod ransac;
 pub mod synthetic;

@@ -1,0 +1,1233 @@
+//! Incremental mapping (paper 003, section 3: "a scene geometry (point cloud) and camera pose
+//! can be estimated simultaneously by using a Structure from Motion algorithm and subsequently
+//! refining the solution using Bundle Adjustment"), organised like COLMAP's incremental mapper:
+//!
+//! 1. tracks from the verified matches (`tracks.rs`);
+//! 2. an initial pair: many inliers, not explained by a homography (planar scene or pure
+//!    rotation), and a wide median triangulation angle; its relative pose, its points, a BA;
+//! 3. repeatedly the unregistered image that sees the most triangulated points is registered
+//!    by PnP (`pnp.rs`); its tracks are extended or triangulated (`triangulation.rs`); a local
+//!    BA adjusts it with its most connected neighbours; points with large reprojection errors
+//!    or small triangulation angles are filtered; each time the model has grown by
+//!    `global_ba_growth` (10%, COLMAP's ratio) a global BA runs, followed by retriangulation
+//!    of the tracks that failed before;
+//! 4. when no image registers any more, a final global BA; if images are left that can start
+//!    a model of their own, the next model is built from them. Models are returned largest
+//!    first; input that cannot start any model is reported as degenerate, with the reason.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+
+use fresco_core::{
+    CamFromWorld, Camera, Image, Point3D, Progress, Reconstruction, Rigid3, TrackElement,
+};
+use nalgebra::{Matrix3, Point2, SMatrix, UnitQuaternion, Vector2, Vector3};
+use serde::Serialize;
+
+use crate::bundle::{BundleConfig, BundleError, BundleSetup, Gauge, bundle_adjust};
+use crate::pnp::{PnpConfig, estimate_pose};
+use crate::ransac::{Estimator, RansacConfig, ransac};
+use crate::tracks::{PairMatches, Tracks, build_tracks};
+use crate::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
+
+/// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
+#[derive(Clone, Debug)]
+pub struct MapperImage {
+    pub id: u32,
+    pub name: String,
+    pub camera_id: u32,
+    pub keypoints: Vec<Point2<f64>>,
+    /// Colour of each keypoint (empty: points are grey).
+    pub colors: Vec<[u8; 3]>,
+}
+
+/// A verified image pair.
+#[derive(Clone, Debug)]
+pub struct MapperPair {
+    pub image1: u32,
+    pub image2: u32,
+    /// The matches are explained by a homography (planar scene or pure rotation): such a pair
+    /// cannot start a model.
+    pub homography: bool,
+    /// Relative pose from the two-view geometry, if known (`|t| = 1`).
+    pub cam2_from_cam1: Option<Rigid3>,
+    /// Inlier matches `[keypoint in image1, keypoint in image2]`.
+    pub inliers: Vec<[u32; 2]>,
+}
+
+/// Everything the mapper needs.
+#[derive(Clone, Debug, Default)]
+pub struct MapperInput {
+    /// Initial intrinsics (from EXIF, a K file or the 1.2 x max(w, h) guess).
+    pub cameras: BTreeMap<u32, Camera>,
+    pub images: Vec<MapperImage>,
+    pub pairs: Vec<MapperPair>,
+}
+
+/// Mapper settings; defaults follow COLMAP's incremental mapper where it has one.
+#[derive(Clone, Debug, Serialize)]
+pub struct MapperConfig {
+    /// Fewest verified inliers of an initial pair. Default 100.
+    pub init_min_inliers: usize,
+    /// Smallest median triangulation angle of an initial pair, degrees. Default 16 (COLMAP's);
+    /// halved once if no pair reaches it.
+    pub init_min_angle_deg: f64,
+    /// Fewest points the initial pair must triangulate. Default 50.
+    pub init_min_points: usize,
+    /// Most initial pairs tried per model. Default 50.
+    pub init_max_trials: usize,
+    pub triangulation: TriangulationConfig,
+    pub pnp: PnpConfig,
+    /// Largest reprojection error of a kept observation after adjustment, pixels. Default 4.
+    pub filter_max_error_px: f64,
+    /// Smallest triangulation angle of a kept point, degrees. Default 1.5.
+    pub filter_min_angle_deg: f64,
+    /// Neighbours adjusted with a newly registered image. Default 6.
+    pub local_ba_images: usize,
+    /// A global adjustment runs when the registered images grew by this factor since the
+    /// last one (COLMAP's 1.1), and always at the end.
+    pub global_ba_growth: f64,
+    pub bundle: BundleConfig,
+    /// Smallest model kept (registered images). Default 3.
+    pub min_model_images: usize,
+    /// Most models built. Default 10.
+    pub max_models: usize,
+    /// The initial intrinsics are trusted (a K file): the focal length is not searched in
+    /// PnP. Default false (only a prior).
+    pub calibrated: bool,
+}
+
+impl Default for MapperConfig {
+    fn default() -> Self {
+        MapperConfig {
+            init_min_inliers: 100,
+            init_min_angle_deg: 16.0,
+            init_min_points: 50,
+            init_max_trials: 50,
+            triangulation: TriangulationConfig::default(),
+            pnp: PnpConfig::default(),
+            filter_max_error_px: 4.0,
+            filter_min_angle_deg: 1.5,
+            local_ba_images: 6,
+            global_ba_growth: 1.1,
+            bundle: BundleConfig::default(),
+            min_model_images: 3,
+            max_models: 10,
+            calibrated: false,
+        }
+    }
+}
+
+/// What mapping produced.
+#[derive(Clone, Debug)]
+pub struct MapperOutput {
+    /// Models, largest (most registered images) first.
+    pub models: Vec<Reconstruction>,
+    /// Why no (further) model could be started, when some images stayed unregistered.
+    pub unregistered_reason: Option<Degeneracy>,
+    pub unregistered: Vec<u32>,
+    pub tracks: usize,
+    pub split_track_components: usize,
+}
+
+/// Why images could not start a model.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub enum Degeneracy {
+    /// No image pair has enough verified inliers.
+    TooFewMatches {
+        best_pair_inliers: usize,
+        needed: usize,
+    },
+    /// Every pair with enough inliers is explained by a homography: a planar scene or a camera
+    /// that only rotated (no parallax to triangulate from).
+    OnlyHomographies { pairs: usize },
+    /// Pairs exist but their triangulation angles are too small (the camera barely moved:
+    /// a pure rotation or a very distant scene).
+    NoParallax {
+        best_median_angle_deg: f64,
+        needed_deg: f64,
+    },
+}
+
+impl std::fmt::Display for Degeneracy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Degeneracy::TooFewMatches {
+                best_pair_inliers,
+                needed,
+            } => write!(
+                f,
+                "no image pair has enough verified matches to start a model (best pair: {best_pair_inliers} inliers, {needed} needed): the images do not overlap"
+            ),
+            Degeneracy::OnlyHomographies { pairs } => write!(
+                f,
+                "degenerate input: all {pairs} overlapping pairs are explained by a homography (a flat scene or a camera that only rotated), so there is no parallax to triangulate"
+            ),
+            Degeneracy::NoParallax {
+                best_median_angle_deg,
+                needed_deg,
+            } => write!(
+                f,
+                "degenerate input: the best pair's median triangulation angle is {best_median_angle_deg:.2} deg (at least {needed_deg:.1} needed): the camera barely moved (pure rotation or a very distant scene)"
+            ),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MapperError {
+    #[error("mapper: image {image} uses camera {camera}, which is not given")]
+    UnknownCamera { image: u32, camera: u32 },
+    #[error("mapper: pair ({image1}, {image2}) names an image that is not given")]
+    UnknownImage { image1: u32, image2: u32 },
+    #[error(
+        "mapper: pair ({image1}, {image2}) has a match to keypoint {keypoint} of image {image}, which has {count} keypoints"
+    )]
+    BadMatch {
+        image1: u32,
+        image2: u32,
+        image: u32,
+        keypoint: u32,
+        count: usize,
+    },
+    #[error(transparent)]
+    Bundle(#[from] BundleError),
+}
+
+// ---------------------------------------------------------------------------------------
+// Relative pose of the initial pair when the two-view geometry did not provide one.
+//
+// Stand-in for the crate's essential-matrix estimation (`essential.rs`, branch sfm-features):
+// the normalised 8-point algorithm (Hartley 1997) inside the crate's RANSAC, decomposed into
+// the four (R, t) and chosen by cheirality. Used only when `MapperPair::cam2_from_cam1` is None.
+
+#[derive(Clone, Copy)]
+struct NormalisedMatch {
+    x1: Vector2<f64>,
+    x2: Vector2<f64>,
+}
+
+struct EssentialEightPoint {
+    /// Focal length in pixels: Sampson errors in the normalised plane are scaled to pixels.
+    focal: f64,
+}
+
+fn essential_from(data: &[NormalisedMatch]) -> Option<Matrix3<f64>> {
+    if data.len() < 8 {
+        return None;
+    }
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for m in data {
+        let (a, b) = (m.x1, m.x2);
+        let row = SMatrix::<f64, 1, 9>::from_row_slice(&[
+            b.x * a.x,
+            b.x * a.y,
+            b.x,
+            b.y * a.x,
+            b.y * a.y,
+            b.y,
+            a.x,
+            a.y,
+            1.0,
+        ]);
+        ata += row.transpose() * row;
+    }
+    let eig = ata.symmetric_eigen();
+    let k = eig.eigenvalues.imin();
+    let e = eig.eigenvectors.column(k);
+    let e = Matrix3::new(e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7], e[8]);
+    // Project onto essential matrices: singular values (1, 1, 0).
+    let svd = e.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    Some(u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)) * vt)
+}
+
+impl Estimator for EssentialEightPoint {
+    type Datum = NormalisedMatch;
+    type Model = Matrix3<f64>;
+    fn min_sample_size(&self) -> usize {
+        8
+    }
+    fn fit_minimal(&self, sample: &[NormalisedMatch], models: &mut Vec<Matrix3<f64>>) {
+        models.extend(essential_from(sample));
+    }
+    fn fit_nonminimal(&self, data: &[NormalisedMatch], models: &mut Vec<Matrix3<f64>>) {
+        models.extend(essential_from(data));
+    }
+    fn squared_error(&self, e: &Matrix3<f64>, m: &NormalisedMatch) -> f64 {
+        // Sampson distance.
+        let (a, b) = (m.x1.push(1.0), m.x2.push(1.0));
+        let ea = e * a;
+        let etb = e.transpose() * b;
+        let num = b.dot(&ea);
+        let den = ea.x * ea.x + ea.y * ea.y + etb.x * etb.x + etb.y * etb.y;
+        if den <= 0.0 {
+            return f64::INFINITY;
+        }
+        num * num / den * self.focal * self.focal
+    }
+}
+
+/// The (R, t) of `E = [t]x R` that puts the most matches in front of both cameras.
+fn decompose_essential(e: &Matrix3<f64>, data: &[NormalisedMatch]) -> Option<Rigid3> {
+    let svd = e.svd(true, true);
+    let (mut u, mut vt) = (svd.u?, svd.v_t?);
+    if u.determinant() < 0.0 {
+        u = -u;
+    }
+    if vt.determinant() < 0.0 {
+        vt = -vt;
+    }
+    let w = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+    let t = u.column(2).into_owned();
+    let mut best: Option<(usize, Rigid3)> = None;
+    for r in [u * w * vt, u * w.transpose() * vt] {
+        for tt in [t, -t] {
+            let pose = Rigid3 {
+                rotation: UnitQuaternion::from_matrix(&r),
+                translation: tt,
+            };
+            let count = data
+                .iter()
+                .filter(|m| {
+                    two_view_point(&pose, &m.x1, &m.x2).is_some_and(|x| {
+                        x.z > 0.0 && (pose.rotation * x + pose.translation).z > 0.0
+                    })
+                })
+                .count();
+            if best.as_ref().is_none_or(|b| count > b.0) {
+                best = Some((count, pose));
+            }
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// Midpoint-free linear triangulation of one match for the cheirality test (camera 1 at the origin).
+fn two_view_point(pose: &Rigid3, x1: &Vector2<f64>, x2: &Vector2<f64>) -> Option<Vector3<f64>> {
+    let p1 = Rigid3::identity().to_matrix();
+    let p2 = pose.to_matrix();
+    crate::triangulation::triangulate_dlt(&[(p1, *x1), (p2, *x2)])
+}
+
+fn estimate_relative_pose(
+    c1: &Camera,
+    c2: &Camera,
+    pts: &[(Point2<f64>, Point2<f64>)],
+    seed: u64,
+) -> Option<Rigid3> {
+    let data: Vec<NormalisedMatch> = pts
+        .iter()
+        .filter_map(|(a, b)| {
+            Some(NormalisedMatch {
+                x1: c1.cam_from_image(a)?.coords,
+                x2: c2.cam_from_image(b)?.coords,
+            })
+        })
+        .collect();
+    let est = EssentialEightPoint {
+        focal: 0.5 * (c1.focal() + c2.focal()),
+    };
+    let cfg = RansacConfig {
+        max_error: 4.0,
+        seed,
+        ..RansacConfig::default()
+    };
+    let report = ransac(&est, &data, &cfg).ok()?;
+    let inl: Vec<NormalisedMatch> = data
+        .iter()
+        .zip(&report.inliers)
+        .filter(|x| *x.1)
+        .map(|x| *x.0)
+        .collect();
+    decompose_essential(&report.model, &inl)
+}
+
+// ---------------------------------------------------------------------------------------
+// The model under construction.
+
+struct Builder<'a> {
+    input: &'a MapperInput,
+    config: &'a MapperConfig,
+    tracks: &'a Tracks,
+    image_index: &'a HashMap<u32, usize>,
+    rec: Reconstruction,
+    /// Point of each track, if triangulated.
+    track_point: Vec<Option<u64>>,
+    point_track: HashMap<u64, usize>,
+    next_point_id: u64,
+    /// Images already in some model (this one or an earlier one).
+    used: &'a BTreeSet<u32>,
+    /// Images that failed registration since the model last changed.
+    failed: BTreeSet<u32>,
+}
+
+impl<'a> Builder<'a> {
+    fn image_input(&self, id: u32) -> &'a MapperImage {
+        &self.input.images[self.image_index[&id]]
+    }
+
+    fn view_of<'b>(&'b self, el: &TrackElement) -> Option<View<'b>> {
+        let image = self.rec.images.get(&el.image_id)?;
+        Some(View {
+            camera: &self.rec.cameras[&image.camera_id],
+            cam_from_world: &image.cam_from_world,
+            pixel: image.keypoints[el.point2d_idx as usize].coords,
+        })
+    }
+
+    fn add_image(&mut self, id: u32, pose: CamFromWorld) {
+        let inp = self.image_input(id);
+        if !self.rec.cameras.contains_key(&inp.camera_id) {
+            self.rec
+                .cameras
+                .insert(inp.camera_id, self.input.cameras[&inp.camera_id].clone());
+        }
+        self.rec.images.insert(
+            id,
+            Image {
+                id,
+                name: inp.name.clone(),
+                camera_id: inp.camera_id,
+                cam_from_world: pose,
+                keypoints: inp.keypoints.clone(),
+                point3d_ids: vec![None; inp.keypoints.len()],
+            },
+        );
+    }
+
+    fn colour_of(&self, track: &[TrackElement]) -> [u8; 3] {
+        let mut sum = [0u32; 3];
+        let mut n = 0;
+        for el in track {
+            let inp = self.image_input(el.image_id);
+            if let Some(c) = inp.colors.get(el.point2d_idx as usize) {
+                for k in 0..3 {
+                    sum[k] += c[k] as u32;
+                }
+                n += 1;
+            }
+        }
+        if n == 0 {
+            [128, 128, 128]
+        } else {
+            sum.map(|s| (s / n) as u8)
+        }
+    }
+
+    /// Triangulates track `t` from its registered views; returns whether a point was made.
+    fn triangulate_track(&mut self, t: usize) -> bool {
+        if self.track_point[t].is_some() {
+            return false;
+        }
+        let elements: Vec<TrackElement> = self.tracks.tracks[t]
+            .elements
+            .iter()
+            .filter(|e| self.rec.images.contains_key(&e.image_id))
+            .copied()
+            .collect();
+        if elements.len() < 2 {
+            return false;
+        }
+        let views: Vec<View> = elements.iter().filter_map(|e| self.view_of(e)).collect();
+        let Ok(tri) = triangulate(&views, &self.config.triangulation) else {
+            return false;
+        };
+        let track: Vec<TrackElement> = tri.inliers.iter().map(|&i| elements[i]).collect();
+        let id = self.next_point_id;
+        self.next_point_id += 1;
+        for el in &track {
+            if let Some(im) = self.rec.images.get_mut(&el.image_id) {
+                im.point3d_ids[el.point2d_idx as usize] = Some(id);
+            }
+        }
+        let color = self.colour_of(&track);
+        self.rec.points3d.insert(
+            id,
+            Point3D {
+                id,
+                position: tri.position.into(),
+                color,
+                error: tri.mean_error_px,
+                track,
+            },
+        );
+        self.track_point[t] = Some(id);
+        self.point_track.insert(id, t);
+        true
+    }
+
+    /// Extends existing points to newly registered images where the reprojection fits, and
+    /// triangulates the tracks that now have two registered views.
+    fn extend_and_triangulate(&mut self, image_id: u32) -> usize {
+        let inp = self.image_input(image_id);
+        let mut made = 0;
+        for kp in 0..inp.keypoints.len() as u32 {
+            let Some(t) = self.tracks.track_of(image_id, kp) else {
+                continue;
+            };
+            match self.track_point[t] {
+                Some(pid) => {
+                    let el = TrackElement {
+                        image_id,
+                        point2d_idx: kp,
+                    };
+                    let Some(point) = self.rec.points3d.get(&pid) else {
+                        continue;
+                    };
+                    if point.track.iter().any(|e| e.image_id == image_id) {
+                        continue;
+                    }
+                    let pos = point.position.coords;
+                    let ok = self.view_of(&el).is_some_and(|v| {
+                        crate::triangulation::reprojection_error(&v, &pos)
+                            .is_some_and(|e| e <= self.config.filter_max_error_px)
+                    });
+                    if ok {
+                        if let Some(p) = self.rec.points3d.get_mut(&pid) {
+                            p.track.push(el);
+                        }
+                        if let Some(im) = self.rec.images.get_mut(&image_id) {
+                            im.point3d_ids[kp as usize] = Some(pid);
+                        }
+                    }
+                }
+                None => {
+                    if self.triangulate_track(t) {
+                        made += 1;
+                    }
+                }
+            }
+        }
+        made
+    }
+
+    /// Tries every untriangulated track again (after an adjustment moved the poses).
+    fn retriangulate(&mut self) -> usize {
+        let mut made = 0;
+        for t in 0..self.tracks.tracks.len() {
+            if self.track_point[t].is_none() && self.triangulate_track(t) {
+                made += 1;
+            }
+        }
+        made
+    }
+
+    fn delete_point(&mut self, pid: u64) {
+        if let Some(p) = self.rec.points3d.remove(&pid) {
+            for el in &p.track {
+                if let Some(im) = self.rec.images.get_mut(&el.image_id) {
+                    im.point3d_ids[el.point2d_idx as usize] = None;
+                }
+            }
+        }
+        if let Some(t) = self.point_track.remove(&pid) {
+            self.track_point[t] = None;
+        }
+    }
+
+    /// Removes observations with a large reprojection error (or behind the camera), then
+    /// points left with fewer than two observations or too small a triangulation angle.
+    /// `images`: only points seen by these images are checked (None: all).
+    fn filter_points(&mut self, images: Option<&BTreeSet<u32>>) -> usize {
+        let pids: Vec<u64> = match images {
+            None => self.rec.points3d.keys().copied().collect(),
+            Some(set) => {
+                let mut v: BTreeSet<u64> = BTreeSet::new();
+                for id in set {
+                    if let Some(im) = self.rec.images.get(id) {
+                        v.extend(im.point3d_ids.iter().flatten());
+                    }
+                }
+                v.into_iter().collect()
+            }
+        };
+        let mut removed = 0;
+        for pid in pids {
+            let Some(point) = self.rec.points3d.get(&pid) else {
+                continue;
+            };
+            let pos = point.position.coords;
+            let mut keep = Vec::new();
+            let mut drop = Vec::new();
+            for el in &point.track {
+                let ok = self.view_of(el).is_some_and(|v| {
+                    crate::triangulation::reprojection_error(&v, &pos)
+                        .is_some_and(|e| e <= self.config.filter_max_error_px)
+                });
+                if ok { keep.push(*el) } else { drop.push(*el) }
+            }
+            let centres: Vec<Vector3<f64>> = keep
+                .iter()
+                .map(|e| self.rec.images[&e.image_id].cam_from_world.center().coords)
+                .collect();
+            let mut angle: f64 = 0.0;
+            for (i, a) in centres.iter().enumerate() {
+                for b in &centres[i + 1..] {
+                    angle = angle.max(ray_angle(a, b, &pos));
+                }
+            }
+            if keep.len() < 2 || angle.to_degrees() < self.config.filter_min_angle_deg {
+                self.delete_point(pid);
+                removed += 1;
+                continue;
+            }
+            if !drop.is_empty() {
+                for el in &drop {
+                    if let Some(im) = self.rec.images.get_mut(&el.image_id) {
+                        im.point3d_ids[el.point2d_idx as usize] = None;
+                    }
+                }
+                if let Some(p) = self.rec.points3d.get_mut(&pid) {
+                    p.track = keep;
+                }
+            }
+        }
+        removed
+    }
+
+    /// Unregistered images ranked by the number of their keypoints whose track has a point.
+    fn next_images(&self) -> Vec<(u32, usize)> {
+        let mut ranked: Vec<(u32, usize)> = self
+            .input
+            .images
+            .iter()
+            .filter(|im| !self.rec.images.contains_key(&im.id) && !self.used.contains(&im.id))
+            .filter(|im| !self.failed.contains(&im.id))
+            .map(|im| {
+                let n = (0..im.keypoints.len() as u32)
+                    .filter(|&kp| {
+                        self.tracks
+                            .track_of(im.id, kp)
+                            .is_some_and(|t| self.track_point[t].is_some())
+                    })
+                    .count();
+                (im.id, n)
+            })
+            .filter(|x| x.1 > 0)
+            .collect();
+        ranked.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        ranked
+    }
+
+    /// Registers `image_id` by PnP; true on success.
+    fn register(&mut self, image_id: u32) -> bool {
+        let inp = self.image_input(image_id);
+        let mut pixels = Vec::new();
+        let mut world = Vec::new();
+        for (kp, px) in inp.keypoints.iter().enumerate() {
+            if let Some(t) = self.tracks.track_of(image_id, kp as u32)
+                && let Some(pid) = self.track_point[t]
+                && let Some(p) = self.rec.points3d.get(&pid)
+            {
+                pixels.push(px.coords);
+                world.push(p.position.coords);
+            }
+        }
+        let camera = self
+            .rec
+            .cameras
+            .get(&inp.camera_id)
+            .unwrap_or(&self.input.cameras[&inp.camera_id])
+            .clone();
+        // A camera not yet refined by any registered image is only a prior: search its focal.
+        let camera_known = self.config.calibrated
+            || self
+                .rec
+                .images
+                .values()
+                .any(|im| im.camera_id == inp.camera_id);
+        let pnp = PnpConfig {
+            estimate_focal: !camera_known,
+            refine_intrinsics: !camera_known,
+            seed: image_id as u64,
+            ..self.config.pnp.clone()
+        };
+        let Ok(result) = estimate_pose(&camera, &pixels, &world, &pnp) else {
+            return false;
+        };
+        if !camera_known {
+            let mut cam = camera.clone();
+            cam.params = result.camera_params.clone();
+            self.rec.cameras.insert(cam.id, cam);
+        }
+        self.add_image(image_id, result.cam_from_world);
+        true
+    }
+
+    fn global_ba(&mut self, gauge: (u32, u32)) -> Result<(), MapperError> {
+        let setup = BundleSetup {
+            gauge: Gauge::Pair(gauge.0, gauge.1),
+            ..BundleSetup::global(&self.rec)
+        };
+        bundle_adjust(&mut self.rec, &setup, &self.config.bundle)?;
+        Ok(())
+    }
+}
+
+/// Result of trying one initial pair.
+enum InitAttempt {
+    Ok(Reconstruction, Vec<Option<u64>>, HashMap<u64, usize>, u64),
+    SmallAngle(f64),
+    Failed,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Builds one model; `None` with the reason when no initial pair works.
+#[allow(clippy::too_many_arguments)]
+fn build_model(
+    input: &MapperInput,
+    config: &MapperConfig,
+    tracks: &Tracks,
+    image_index: &HashMap<u32, usize>,
+    used: &BTreeSet<u32>,
+    progress: &dyn Progress,
+) -> Result<Result<Reconstruction, Degeneracy>, MapperError> {
+    // Candidate initial pairs: both images unused, enough inliers.
+    let mut candidates: Vec<&MapperPair> = input
+        .pairs
+        .iter()
+        .filter(|p| !used.contains(&p.image1) && !used.contains(&p.image2))
+        .collect();
+    let best_inliers = candidates
+        .iter()
+        .map(|p| p.inliers.len())
+        .max()
+        .unwrap_or(0);
+    candidates.retain(|p| p.inliers.len() >= config.init_min_inliers);
+    if candidates.is_empty() {
+        return Ok(Err(Degeneracy::TooFewMatches {
+            best_pair_inliers: best_inliers,
+            needed: config.init_min_inliers,
+        }));
+    }
+    let n_enough = candidates.len();
+    candidates.retain(|p| !p.homography);
+    if candidates.is_empty() {
+        return Ok(Err(Degeneracy::OnlyHomographies { pairs: n_enough }));
+    }
+    candidates.sort_by(|a, b| {
+        b.inliers
+            .len()
+            .cmp(&a.inliers.len())
+            .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
+    });
+    let mut best_angle: f64 = 0.0;
+    let mut chosen = None;
+    'angles: for min_angle in [config.init_min_angle_deg, 0.5 * config.init_min_angle_deg] {
+        for pair in candidates.iter().take(config.init_max_trials) {
+            match try_initial_pair(input, config, tracks, image_index, used, pair, min_angle)? {
+                InitAttempt::Ok(rec, tp, pt, next) => {
+                    chosen = Some((pair, rec, tp, pt, next));
+                    break 'angles;
+                }
+                InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
+                InitAttempt::Failed => {}
+            }
+        }
+    }
+    let Some((pair, rec, track_point, point_track, next_point_id)) = chosen else {
+        return Ok(Err(Degeneracy::NoParallax {
+            best_median_angle_deg: best_angle,
+            needed_deg: 0.5 * config.init_min_angle_deg,
+        }));
+    };
+    let gauge = (pair.image1, pair.image2);
+    let mut b = Builder {
+        input,
+        config,
+        tracks,
+        image_index,
+        rec,
+        track_point,
+        point_track,
+        next_point_id,
+        used,
+        failed: BTreeSet::new(),
+    };
+    let mut last_global = b.rec.images.len();
+    progress.advance(2);
+    loop {
+        let candidates = b.next_images();
+        let mut registered = None;
+        for (id, _) in candidates {
+            if b.register(id) {
+                registered = Some(id);
+                break;
+            }
+            b.failed.insert(id);
+        }
+        let Some(id) = registered else { break };
+        progress.advance(1);
+        b.failed.clear();
+        b.extend_and_triangulate(id);
+        let setup = BundleSetup::local(&b.rec, id, config.local_ba_images);
+        let local_images = setup.images.clone();
+        bundle_adjust(&mut b.rec, &setup, &config.bundle)?;
+        b.filter_points(Some(&local_images));
+        if b.rec.images.len() as f64 >= config.global_ba_growth * last_global as f64 {
+            b.global_ba(gauge)?;
+            b.filter_points(None);
+            b.retriangulate();
+            b.global_ba(gauge)?;
+            b.filter_points(None);
+            last_global = b.rec.images.len();
+        }
+    }
+    b.retriangulate();
+    b.global_ba(gauge)?;
+    b.filter_points(None);
+    b.global_ba(gauge)?;
+    b.filter_points(None);
+    for p in b.rec.points3d.values_mut() {
+        p.track.sort_by_key(|e| (e.image_id, e.point2d_idx));
+    }
+    Ok(Ok(b.rec))
+}
+
+fn try_initial_pair(
+    input: &MapperInput,
+    config: &MapperConfig,
+    tracks: &Tracks,
+    image_index: &HashMap<u32, usize>,
+    used: &BTreeSet<u32>,
+    pair: &MapperPair,
+    min_angle_deg: f64,
+) -> Result<InitAttempt, MapperError> {
+    let im1 = &input.images[image_index[&pair.image1]];
+    let im2 = &input.images[image_index[&pair.image2]];
+    let c1 = &input.cameras[&im1.camera_id];
+    let c2 = &input.cameras[&im2.camera_id];
+    let pose = match pair.cam2_from_cam1 {
+        Some(p) => p,
+        None => {
+            let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
+                .inliers
+                .iter()
+                .map(|m| (im1.keypoints[m[0] as usize], im2.keypoints[m[1] as usize]))
+                .collect();
+            match estimate_relative_pose(
+                c1,
+                c2,
+                &pts,
+                (pair.image1 as u64) << 32 | pair.image2 as u64,
+            ) {
+                Some(p) => p,
+                None => return Ok(InitAttempt::Failed),
+            }
+        }
+    };
+    let mut b = Builder {
+        input,
+        config,
+        tracks,
+        image_index,
+        rec: Reconstruction::default(),
+        track_point: vec![None; tracks.tracks.len()],
+        point_track: HashMap::new(),
+        next_point_id: 1,
+        used,
+        failed: BTreeSet::new(),
+    };
+    b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
+    b.add_image(pair.image2, CamFromWorld(pose));
+    // Triangulate with a permissive angle first; the pair is judged by the median angle.
+    let mut tri_cfg = config.triangulation.clone();
+    tri_cfg.min_angle_deg = 0.0;
+    let relaxed = MapperConfig {
+        triangulation: tri_cfg,
+        ..config.clone()
+    };
+    b.config = &relaxed;
+    b.extend_and_triangulate(pair.image1);
+    let angles: Vec<f64> = b
+        .rec
+        .points3d
+        .values()
+        .map(|p| {
+            let c1 = b.rec.images[&pair.image1].cam_from_world.center().coords;
+            let c2 = b.rec.images[&pair.image2].cam_from_world.center().coords;
+            ray_angle(&c1, &c2, &p.position.coords).to_degrees()
+        })
+        .collect();
+    if b.rec.points3d.len() < config.init_min_points {
+        return Ok(InitAttempt::Failed);
+    }
+    let med = median(angles);
+    if med < min_angle_deg {
+        return Ok(InitAttempt::SmallAngle(med));
+    }
+    b.config = config;
+    b.global_ba((pair.image1, pair.image2))?;
+    b.filter_points(None);
+    if b.rec.points3d.len() < config.init_min_points {
+        return Ok(InitAttempt::Failed);
+    }
+    Ok(InitAttempt::Ok(
+        b.rec,
+        b.track_point,
+        b.point_track,
+        b.next_point_id,
+    ))
+}
+
+/// Builds models from verified pairs (see the module documentation).
+pub fn map(
+    input: &MapperInput,
+    config: &MapperConfig,
+    progress: &dyn Progress,
+) -> Result<MapperOutput, MapperError> {
+    let image_index: HashMap<u32, usize> = input
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| (im.id, i))
+        .collect();
+    for im in &input.images {
+        if !input.cameras.contains_key(&im.camera_id) {
+            return Err(MapperError::UnknownCamera {
+                image: im.id,
+                camera: im.camera_id,
+            });
+        }
+    }
+    for p in &input.pairs {
+        let (Some(&a), Some(&b)) = (image_index.get(&p.image1), image_index.get(&p.image2)) else {
+            return Err(MapperError::UnknownImage {
+                image1: p.image1,
+                image2: p.image2,
+            });
+        };
+        for m in &p.inliers {
+            for (k, idx) in [(m[0], a), (m[1], b)] {
+                let count = input.images[idx].keypoints.len();
+                if k as usize >= count {
+                    return Err(MapperError::BadMatch {
+                        image1: p.image1,
+                        image2: p.image2,
+                        image: input.images[idx].id,
+                        keypoint: k,
+                        count,
+                    });
+                }
+            }
+        }
+    }
+    let pair_matches: Vec<PairMatches> = input
+        .pairs
+        .iter()
+        .map(|p| PairMatches {
+            image_a: p.image1,
+            image_b: p.image2,
+            matches: p.inliers.clone(),
+        })
+        .collect();
+    let tracks = build_tracks(&pair_matches);
+    progress.begin("mapping", input.images.len() as u64);
+    let mut used: BTreeSet<u32> = BTreeSet::new();
+    let mut models = Vec::new();
+    let mut reason = None;
+    while models.len() < config.max_models {
+        let remaining = input
+            .images
+            .iter()
+            .filter(|im| !used.contains(&im.id))
+            .count();
+        if remaining < 2 {
+            break;
+        }
+        match build_model(input, config, &tracks, &image_index, &used, progress)? {
+            Ok(model) => {
+                used.extend(model.images.keys().copied());
+                if model.images.len() >= config.min_model_images {
+                    models.push(model);
+                }
+            }
+            Err(why) => {
+                reason = Some(why);
+                break;
+            }
+        }
+    }
+    progress.end();
+    models.sort_by_key(|m| std::cmp::Reverse(m.images.len()));
+    let registered: BTreeSet<u32> = models
+        .iter()
+        .flat_map(|m| m.images.keys().copied())
+        .collect();
+    let unregistered: Vec<u32> = input
+        .images
+        .iter()
+        .map(|im| im.id)
+        .filter(|id| !registered.contains(id))
+        .collect();
+    Ok(MapperOutput {
+        models,
+        unregistered_reason: if unregistered.is_empty() {
+            None
+        } else {
+            reason
+        },
+        unregistered,
+        tracks: tracks.tracks.len(),
+        split_track_components: tracks.split_components,
+    })
+}
+
+/// Mapper input from a reconstruction whose keypoints and tracks are known (synthetic data,
+/// a ground-truth model): every pair of images sharing at least one point becomes a verified
+/// pair with those matches. For tests and benchmarks of the mapper without feature matching.
+pub fn input_from_tracks(rec: &Reconstruction) -> MapperInput {
+    let mut pairs: BTreeMap<(u32, u32), Vec<[u32; 2]>> = BTreeMap::new();
+    for p in rec.points3d.values() {
+        for (i, a) in p.track.iter().enumerate() {
+            for b in &p.track[i + 1..] {
+                let (x, y) = if a.image_id < b.image_id {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
+                pairs
+                    .entry((x.image_id, y.image_id))
+                    .or_default()
+                    .push([x.point2d_idx, y.point2d_idx]);
+            }
+        }
+    }
+    MapperInput {
+        cameras: rec.cameras.clone(),
+        images: rec
+            .images
+            .values()
+            .map(|im| MapperImage {
+                id: im.id,
+                name: im.name.clone(),
+                camera_id: im.camera_id,
+                keypoints: im.keypoints.clone(),
+                colors: Vec::new(),
+            })
+            .collect(),
+        pairs: pairs
+            .into_iter()
+            .map(|((a, b), m)| MapperPair {
+                image1: a,
+                image2: b,
+                homography: false,
+                cam2_from_cam1: None,
+                inliers: m,
+            })
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evaluate::evaluate_poses;
+    use crate::synthetic::{SplitMix, SyntheticConfig, look_at_origin, synthetic_reconstruction};
+    use fresco_core::NoProgress;
+
+    fn config() -> MapperConfig {
+        MapperConfig {
+            init_min_inliers: 30,
+            init_min_points: 30,
+            ..Default::default()
+        }
+    }
+
+    /// 16 views on a ring, 0.5 px noise, focal prior 20% off and no distortion prior: all
+    /// registered, poses within 0.2 deg after alignment (the BA optimum itself is about
+    /// 0.05 deg off for this noise, see bundle's tests), intrinsics at the BA optimum.
+    #[test]
+    fn synthetic_ring_is_reconstructed() {
+        let (truth, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 16,
+            points: 1500,
+            noise_px: 0.5,
+            params: vec![600.0, 320.0, 240.0, -0.08],
+            seed: 3,
+            ..Default::default()
+        });
+        let mut input = input_from_tracks(&truth);
+        input.cameras.get_mut(&1).unwrap().params = vec![720.0, 320.0, 240.0, 0.0];
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert_eq!(out.models.len(), 1);
+        let model = &out.models[0];
+        assert_eq!(model.images.len(), 16);
+        let e = evaluate_poses(model, &truth).unwrap();
+        assert!(e.max_rotation_deg < 0.2, "{e:?}");
+        assert!(e.max_centre_frac < 0.005, "{e:?}");
+        // The points fill only the middle of the images, so k is weakly determined by this
+        // data: the property is that mapping reaches the least-squares optimum, i.e. the
+        // intrinsics a global BA finds when started from the ground truth (within 0.5% for f,
+        // 5% for k), and that optimum is near the truth (f within 1%).
+        let mut optimum = truth.clone();
+        let setup = BundleSetup { gauge: Gauge::Pair(1, 2), ..BundleSetup::global(&optimum) };
+        bundle_adjust(&mut optimum, &setup, &BundleConfig::default()).unwrap();
+        let (cam, opt) = (&model.cameras[&1].params, &optimum.cameras[&1].params);
+        assert!((cam[0] - opt[0]).abs() < 0.005 * opt[0], "{cam:?} vs {opt:?}");
+        assert!((cam[3] - opt[3]).abs() < 0.05 * opt[3].abs(), "{cam:?} vs {opt:?}");
+        assert!((opt[0] - 600.0).abs() < 6.0, "{opt:?}");
+        assert!(e.mean_reprojection_px < 1.0, "{e:?}");
+        assert!(model.points3d.len() > 1200, "{}", model.points3d.len());
+    }
+
+    /// Two unrelated image sets (no match between them) give two models, each complete.
+    #[test]
+    fn unrelated_sets_give_two_models() {
+        let (a, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 8,
+            points: 500,
+            noise_px: 0.3,
+            seed: 1,
+            ..Default::default()
+        });
+        let (b, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 6,
+            points: 500,
+            noise_px: 0.3,
+            seed: 2,
+            ..Default::default()
+        });
+        let mut ia = input_from_tracks(&a);
+        let ib = input_from_tracks(&b);
+        // Image ids 101.. and camera 2 for the second set.
+        let mut cam = ib.cameras[&1].clone();
+        cam.id = 2;
+        ia.cameras.insert(2, cam);
+        for mut im in ib.images {
+            im.id += 100;
+            im.camera_id = 2;
+            im.name = format!("b_{}", im.name);
+            ia.images.push(im);
+        }
+        for mut p in ib.pairs {
+            p.image1 += 100;
+            p.image2 += 100;
+            ia.pairs.push(p);
+        }
+        let out = map(&ia, &config(), &NoProgress).unwrap();
+        assert_eq!(out.models.len(), 2);
+        assert_eq!(out.models[0].images.len(), 8);
+        assert_eq!(out.models[1].images.len(), 6);
+        assert!(out.models[1].images.keys().all(|&id| id > 100));
+        assert!(out.unregistered.is_empty());
+    }
+
+    /// Cameras that only rotate about one centre: reported as degenerate (no parallax), and
+    /// no model is returned.
+    #[test]
+    fn pure_rotation_is_degenerate() {
+        let (mut rec, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 2,
+            points: 0,
+            ..Default::default()
+        });
+        rec.points3d.clear();
+        let mut rng = SplitMix::new(5);
+        let cam = rec.cameras[&1].clone();
+        rec.images.clear();
+        for i in 0..6u32 {
+            let yaw = (i as f64 * 8.0).to_radians();
+            // Centre at the origin, looking outwards towards a far point cloud.
+            let dir = Vector3::new(yaw.cos(), yaw.sin(), 0.1);
+            let mut pose = look_at_origin(-dir);
+            pose.0.translation = Vector3::zeros();
+            rec.images.insert(
+                i + 1,
+                Image {
+                    id: i + 1,
+                    name: format!("rot{i}.png"),
+                    camera_id: 1,
+                    cam_from_world: pose,
+                    keypoints: Vec::new(),
+                    point3d_ids: Vec::new(),
+                },
+            );
+        }
+        for pid in 1..=800u64 {
+            let az = rng.uniform() * 1.2 - 0.2;
+            let el = rng.uniform() * 0.5 - 0.15;
+            let x = 20.0 * Vector3::new(az.cos() * el.cos(), az.sin() * el.cos(), el.sin());
+            let mut track = Vec::new();
+            for im in rec.images.values_mut() {
+                let xc = im.cam_from_world.0.rotation * x + im.cam_from_world.0.translation;
+                if let Some(p) = cam.image_from_cam(&xc.into())
+                    && cam.contains(&p)
+                {
+                    track.push(TrackElement {
+                        image_id: im.id,
+                        point2d_idx: im.keypoints.len() as u32,
+                    });
+                    im.keypoints
+                        .push(p + Vector2::new(rng.normal(), rng.normal()) * 0.3);
+                    im.point3d_ids.push(Some(pid));
+                }
+            }
+            if track.len() >= 2 {
+                rec.points3d.insert(
+                    pid,
+                    Point3D {
+                        id: pid,
+                        position: x.into(),
+                        color: [0; 3],
+                        error: 0.0,
+                        track,
+                    },
+                );
+            }
+        }
+        let input = input_from_tracks(&rec);
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert!(out.models.is_empty(), "{} models", out.models.len());
+        assert!(
+            matches!(out.unregistered_reason, Some(Degeneracy::NoParallax { .. })),
+            "{:?}",
+            out.unregistered_reason
+        );
+        let msg = out.unregistered_reason.unwrap().to_string();
+        assert!(msg.contains("degenerate"), "{msg}");
+    }
+
+    /// Pairs explained only by homographies, or too few matches, are reported as such.
+    #[test]
+    fn homography_only_and_no_overlap_are_reported() {
+        let (truth, _) = synthetic_reconstruction(&SyntheticConfig::default());
+        let mut input = input_from_tracks(&truth);
+        for p in &mut input.pairs {
+            p.homography = true;
+        }
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert!(matches!(
+            out.unregistered_reason,
+            Some(Degeneracy::OnlyHomographies { .. })
+        ));
+        let mut input = input_from_tracks(&truth);
+        input.pairs.iter_mut().for_each(|p| p.inliers.truncate(5));
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert!(out.models.is_empty());
+        assert!(matches!(
+            out.unregistered_reason,
+            Some(Degeneracy::TooFewMatches {
+                best_pair_inliers: 5,
+                ..
+            })
+        ));
+        // A match to a keypoint that does not exist is an error naming it.
+        let mut input = input_from_tracks(&truth);
+        input.pairs[0].inliers.push([100000, 0]);
+        assert!(matches!(
+            map(&input, &config(), &NoProgress),
+            Err(MapperError::BadMatch {
+                keypoint: 100000,
+                ..
+            })
+        ));
+    }
+}
