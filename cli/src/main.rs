@@ -6,6 +6,7 @@
 
 mod progress;
 mod synth;
+mod pst;
 
 use std::process::ExitCode;
 
@@ -39,6 +40,8 @@ enum Command {
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
     /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
     Synth(synth::SynthArgs),
+    /// Point-sampled textures for meshes too large for memory.
+    Pst(pst::PstArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
     };
     let result: anyhow::Result<serde_json::Value> = match cli.command {
         Command::Synth(args) => synth::run(args, &ctx),
+        Command::Pst(args) => pst::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

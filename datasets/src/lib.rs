@@ -1,6 +1,7 @@
 //! fresco-datasets: the data fresco is tested and benchmarked on.
 //!
 //! - [`shapes`]: closed test shapes with known genus (sphere, torus, double torus, blob, temple).
+//! - [`large_mesh`]: huge subdivided, displaced spheres streamed to PLY (pst benchmarks).
 //! - [`albedo`]: a UV-free procedural albedo over 3D positions ([`Albedo`]).
 //! - [`synthetic`]: synthetic scenes with exact ground truth: [`build_scene`], [`render_view`],
 //!   [`write_dataset`] (photos, masks, COLMAP and Middlebury cameras, PLY/GLB mesh).
@@ -8,6 +9,7 @@
 //!   with their ground truth where it exists.
 
 pub mod albedo;
+pub mod large_mesh;
 pub mod real;
 pub mod shapes;
 pub mod synthetic;

@@ -93,7 +93,9 @@ impl<'a> Field<'a> {
             }
         }
         d.sort_by(f32::total_cmp);
-        let tile = d.get(d.len() / 2).copied().unwrap_or(1.0).max(1e-12);
+        // Tiles of 1.5 d_k: measured faster than 1, 2 or 3 (fewer tree queries per lookup
+        // against longer candidate lists).
+        let tile = 1.5 * d.get(d.len() / 2).copied().unwrap_or(1.0).max(1e-12);
         Field {
             samples,
             index,
@@ -140,7 +142,8 @@ impl<'a> Field<'a> {
         // Sort the queries by tile.
         let inv = 1.0 / self.tile;
         let key = |p: &[f32; 3]| -> u64 {
-            let q = |v: f32| ((v * inv).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u64;
+            // Truncation of a positive value is its floor (and needs no libm call).
+            let q = |v: f32| ((v * inv + (1 << 20) as f32).max(0.0) as u64).min((1 << 21) - 1);
             q(p[0]) | q(p[1]) << 21 | q(p[2]) << 42
         };
         let mut order: Vec<(u64, u32)> = points
@@ -225,23 +228,42 @@ impl<'a> Field<'a> {
         // Inflated a little so that f32 rounding never drops a true neighbour.
         let radius = (dk + 2.0 * r) * (1.0 + 1e-5) + 1e-7 * (c[0].abs() + c[1].abs() + c[2].abs());
         self.index.within(&c, radius * radius, &mut s.nb);
-        s.cand.clear();
+        s.cx.clear();
+        s.cy.clear();
+        s.cz.clear();
+        s.cid.clear();
         for &(_, j) in &s.nb {
             let q = self.samples.positions[j as usize];
-            s.cand.push((q, j));
+            s.cx.push(q[0]);
+            s.cy.push(q[1]);
+            s.cz.push(q[2]);
+            s.cid.push(j);
         }
+        s.d2.resize(s.cid.len(), 0.0);
         for (jq, &(_, i)) in qs.iter().enumerate() {
             let p = points[i as usize];
+            // Distances to every candidate (a loop the compiler vectorises), then the k
+            // smallest by insertion into a short sorted list: after the first k, most
+            // candidates fail the threshold test.
+            for (((d, x), y), z) in s.d2.iter_mut().zip(&s.cx).zip(&s.cy).zip(&s.cz) {
+                *d = (p[0] - x) * (p[0] - x) + (p[1] - y) * (p[1] - y) + (p[2] - z) * (p[2] - z);
+            }
             s.best.clear();
-            for &(q, j) in &s.cand {
-                let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-                if s.best.len() < k {
-                    let pos = s.best.partition_point(|x| x.0 <= d2);
-                    s.best.insert(pos, (d2, j));
-                } else if d2 < s.best[k - 1].0 {
+            let mut worst = f32::INFINITY;
+            for (c, &d2) in s.d2.iter().enumerate() {
+                if s.best.len() == k {
+                    if d2 >= worst {
+                        continue;
+                    }
                     s.best.pop();
-                    let pos = s.best.partition_point(|x| x.0 <= d2);
-                    s.best.insert(pos, (d2, j));
+                }
+                let mut pos = s.best.len();
+                while pos > 0 && s.best[pos - 1].0 > d2 {
+                    pos -= 1;
+                }
+                s.best.insert(pos, (d2, s.cid[c]));
+                if s.best.len() == k {
+                    worst = s.best[k - 1].0;
                 }
             }
             self.blend(&s.best, &mut out[jq * w..(jq + 1) * w]);
@@ -323,7 +345,11 @@ type TileRun<'o> = (&'o [(usize, usize)], &'o mut [f32]);
 #[derive(Default)]
 struct Scratch {
     nb: Vec<(f32, u32)>,
-    cand: Vec<([f32; 3], u32)>,
+    cx: Vec<f32>,
+    cy: Vec<f32>,
+    cz: Vec<f32>,
+    cid: Vec<u32>,
+    d2: Vec<f32>,
     best: Vec<(f32, u32)>,
 }
 

@@ -15,6 +15,8 @@
 // Loops over the 3 axes index several arrays at once; iterator chains would read worse.
 #![allow(clippy::needless_range_loop)]
 
+pub mod apply;
+pub mod bench;
 pub mod cluster;
 pub mod error;
 pub mod field;
@@ -22,6 +24,7 @@ pub mod index;
 pub mod input;
 pub mod mgrid;
 pub mod node_files;
+pub mod ply_input;
 pub mod samples;
 pub mod sampling;
 pub mod store;
@@ -30,6 +33,7 @@ pub use cluster::PositionRule;
 pub use error::{PstError, Result};
 pub use field::{Field, FieldConfig, Kernel};
 pub use input::{MemoryPoints, PointSource, SourcePoint};
+pub use ply_input::PlyPoints;
 pub use samples::SampleSet;
 pub use sampling::{NodeInfo, Sampling, SamplingConfig, sample};
 pub use store::{Channel, CreateConfig, Pst};

@@ -1,0 +1,228 @@
+//! `fresco pst ...`: point-sampled textures for meshes too large for memory (fresco-pst).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use clap::{Args, Subcommand};
+use fresco_core::ply::PlyFormat;
+use fresco_pst::apply::{ApplyConfig, apply_to_ply};
+use fresco_pst::{
+    Channel, CreateConfig, FieldConfig, Kernel, PlyPoints, PositionRule, Pst, SamplingConfig,
+};
+use serde_json::json;
+
+use crate::Context;
+use crate::progress::Bars;
+
+#[derive(Args, Debug)]
+pub struct PstArgs {
+    #[command(subcommand)]
+    command: PstCommand,
+}
+
+#[derive(Subcommand, Debug)]
+enum PstCommand {
+    /// Sample a huge PLY (mesh or point cloud) out of core into a PST folder.
+    Sample(SampleArgs),
+    /// Write the mesh with per-vertex colours evaluated from the PST.
+    Apply(ApplyArgs),
+    /// Generate a large test mesh (subdivided, displaced sphere) streamed to a binary PLY.
+    GenMesh(GenMeshArgs),
+    /// Measure PST lookup throughput at points near the samples.
+    Lookups(LookupsArgs),
+}
+
+#[derive(Args, Debug)]
+struct SampleArgs {
+    /// Input PLY (binary or ascii; mesh or point cloud).
+    input: PathBuf,
+    /// Target number of samples.
+    #[arg(short, long, default_value_t = 100_000)]
+    n: u64,
+    /// Adaptivity alpha (samples per 1-node; 0 = uniform).
+    #[arg(long, default_value_t = 0.0)]
+    alpha: f64,
+    /// Position rule: centroid or quadric.
+    #[arg(long, default_value = "centroid")]
+    position: String,
+    /// Keep the paper's plain sub-grid sizes (no correction towards n).
+    #[arg(long)]
+    no_size_correction: bool,
+    /// Folder for the 1-node files while sampling (default: beside the output).
+    #[arg(long)]
+    temp_dir: Option<PathBuf>,
+    /// Do not keep the 1-node files (refinement becomes unavailable).
+    #[arg(long)]
+    no_node_files: bool,
+    /// In-core sample budget for the LRU.
+    #[arg(long)]
+    budget: Option<usize>,
+    /// Output PST folder.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct ApplyArgs {
+    /// PST folder.
+    pst: PathBuf,
+    /// The original mesh (PLY).
+    input: PathBuf,
+    /// Output PLY with per-vertex colours.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Neighbourhood size of the PST.
+    #[arg(short, default_value_t = 8)]
+    k: usize,
+    /// Singular (feature-preserving) kernel with this power instead of the Hermite decay.
+    #[arg(long)]
+    singular: Option<f32>,
+    /// Channel written as colour.
+    #[arg(long, default_value = "rgb")]
+    channel: String,
+    /// Write ascii instead of binary.
+    #[arg(long)]
+    ascii: bool,
+}
+
+#[derive(Args, Debug)]
+struct GenMeshArgs {
+    /// Number of triangles (rounded to the subdivision grid).
+    #[arg(long, default_value_t = 10_000_000)]
+    triangles: u64,
+    /// Output PLY.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct LookupsArgs {
+    /// PST folder.
+    pst: PathBuf,
+    /// Number of lookups.
+    #[arg(long, default_value_t = 10_000_000)]
+    count: usize,
+    #[arg(short, default_value_t = 8)]
+    k: usize,
+}
+
+pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
+    let bars = Bars::new(ctx);
+    match args.command {
+        PstCommand::Sample(a) => {
+            let position = match a.position.as_str() {
+                "centroid" => PositionRule::Centroid,
+                "quadric" => PositionRule::Quadric,
+                other => bail!("--position must be centroid or quadric, not {other}"),
+            };
+            let source = PlyPoints::open(&a.input)?;
+            let cfg = CreateConfig {
+                sampling: SamplingConfig {
+                    target: a.n,
+                    alpha: a.alpha,
+                    position,
+                    correct_size: !a.no_size_correction,
+                    ..Default::default()
+                },
+                channels: vec![Channel::new("rgb", &[0.8, 0.8, 0.8])],
+                temp_dir: a.temp_dir,
+                keep_node_files: !a.no_node_files,
+                budget: a.budget,
+            };
+            let t = Instant::now();
+            let (pst, s) = Pst::create(&source, &cfg, &a.output, &bars)
+                .with_context(|| format!("sampling {}", a.input.display()))?;
+            let secs = t.elapsed().as_secs_f64();
+            for w in &s.warnings {
+                eprintln!("warning: {w}");
+            }
+            Ok(json!({
+                "input": a.input,
+                "output": pst.dir,
+                "input_points": s.input_points,
+                "target": a.n,
+                "samples": s.samples.len(),
+                "size_error_percent": 100.0 * (s.samples.len() as f64 - a.n as f64) / a.n as f64,
+                "paper_scheme_samples": s.paper_size,
+                "one_nodes": s.nodes.len(),
+                "alpha": a.alpha,
+                "seconds": secs,
+                "points_per_second": s.input_points as f64 / secs,
+                "warnings": s.warnings,
+            }))
+        }
+        PstCommand::Apply(a) => {
+            let pst = Pst::open(&a.pst)?;
+            let cfg = ApplyConfig {
+                field: field_config(a.k, a.singular)?,
+                channel: a.channel,
+                format: if a.ascii {
+                    PlyFormat::Ascii
+                } else {
+                    PlyFormat::BinaryLittleEndian
+                },
+                ..Default::default()
+            };
+            let t = Instant::now();
+            let r = apply_to_ply(&pst, &a.input, &a.output, &cfg, &bars).with_context(|| {
+                format!("applying {} to {}", a.pst.display(), a.input.display())
+            })?;
+            let secs = t.elapsed().as_secs_f64();
+            Ok(json!({
+                "output": a.output,
+                "vertices": r.vertices,
+                "faces": r.faces,
+                "samples": r.samples,
+                "k": r.k,
+                "seconds": secs,
+                "vertices_per_second": r.vertices as f64 / secs,
+            }))
+        }
+        PstCommand::GenMesh(a) => {
+            let lm = fresco_datasets::large_mesh::LargeMesh::with_triangles(a.triangles);
+            let t = Instant::now();
+            lm.write_ply(&a.output, PlyFormat::BinaryLittleEndian, &bars)?;
+            Ok(json!({
+                "output": a.output,
+                "vertices": lm.vertex_count(),
+                "triangles": lm.triangle_count(),
+                "seconds": t.elapsed().as_secs_f64(),
+            }))
+        }
+        PstCommand::Lookups(a) => {
+            let pst = Pst::open(&a.pst)?;
+            let field = fresco_pst::Field::new(&pst.samples, field_config(a.k, None)?);
+            let queries = fresco_pst::bench::queries_near_samples(&pst.samples, a.count, 1);
+            let mut out = vec![0f32; queries.len() * pst.samples.width];
+            // Best of 3 runs: the machine is shared.
+            let mut best = f64::INFINITY;
+            for _ in 0..3 {
+                let t = Instant::now();
+                field.eval_many(&queries, &mut out);
+                best = best.min(t.elapsed().as_secs_f64());
+            }
+            Ok(json!({
+                "samples": pst.samples.len(),
+                "lookups": a.count,
+                "k": a.k,
+                "threads": rayon::current_num_threads(),
+                "seconds": best,
+                "lookups_per_second": a.count as f64 / best,
+            }))
+        }
+    }
+}
+
+fn field_config(k: usize, singular: Option<f32>) -> anyhow::Result<FieldConfig> {
+    if k == 0 {
+        bail!("-k must be at least 1");
+    }
+    Ok(FieldConfig {
+        k,
+        kernel: match singular {
+            Some(power) => Kernel::Singular { power },
+            None => Kernel::Hermite,
+        },
+    })
+}
