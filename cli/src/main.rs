@@ -5,8 +5,8 @@
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
 mod progress;
-mod synth;
 mod pst;
+mod synth;
 
 use std::process::ExitCode;
 
