@@ -13,6 +13,8 @@
 //! - `mapper.rs`: [`mapper::map`], incremental mapping into one or more models, degenerate input
 //!   reported.
 //! - `pnp.rs`: [`pnp::estimate_pose`], P3P in RANSAC, LM refinement (optionally of focal, k1).
+//! - `silhouette.rs`: paper 003's silhouette constraints (marching squares, Douglas–Peucker,
+//!   cone lines lifted through the other masks, joined to the adjustment).
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `ransac.rs`: the one RANSAC ([`ransac::ransac`] over any [`ransac::Estimator`]), LO-RANSAC
 //!   with MSAC scoring, adaptive iteration count, seeded deterministic sampling.
@@ -24,6 +26,7 @@ pub mod loss;
 pub mod mapper;
 pub mod pnp;
 pub mod ransac;
+pub mod silhouette;
 pub mod synthetic;
 pub mod tracks;
 pub mod triangulation;

@@ -1068,11 +1068,20 @@ mod tests {
         // intrinsics a global BA finds when started from the ground truth (within 0.5% for f,
         // 5% for k), and that optimum is near the truth (f within 1%).
         let mut optimum = truth.clone();
-        let setup = BundleSetup { gauge: Gauge::Pair(1, 2), ..BundleSetup::global(&optimum) };
+        let setup = BundleSetup {
+            gauge: Gauge::Pair(1, 2),
+            ..BundleSetup::global(&optimum)
+        };
         bundle_adjust(&mut optimum, &setup, &BundleConfig::default()).unwrap();
         let (cam, opt) = (&model.cameras[&1].params, &optimum.cameras[&1].params);
-        assert!((cam[0] - opt[0]).abs() < 0.005 * opt[0], "{cam:?} vs {opt:?}");
-        assert!((cam[3] - opt[3]).abs() < 0.05 * opt[3].abs(), "{cam:?} vs {opt:?}");
+        assert!(
+            (cam[0] - opt[0]).abs() < 0.005 * opt[0],
+            "{cam:?} vs {opt:?}"
+        );
+        assert!(
+            (cam[3] - opt[3]).abs() < 0.05 * opt[3].abs(),
+            "{cam:?} vs {opt:?}"
+        );
         assert!((opt[0] - 600.0).abs() < 6.0, "{opt:?}");
         assert!(e.mean_reprojection_px < 1.0, "{e:?}");
         assert!(model.points3d.len() > 1200, "{}", model.points3d.len());
