@@ -33,6 +33,7 @@ use std::path::{Path, PathBuf};
 use fresco_core::camera::{Camera, CameraModel};
 use fresco_core::mesh::Aabb;
 use fresco_core::nalgebra::{Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
+use fresco_core::ply::{self, PlyFormat};
 use fresco_core::raster::{self, RasterConfig, Render, SampleMap, Shading};
 use fresco_core::reconstruction::{Image, Point3D, Reconstruction, TrackElement};
 use fresco_core::topology::Topology;
@@ -641,7 +642,11 @@ pub fn write_dataset(
         &scene,
         &out.join(format!("{}_par.txt", config.shape.name())),
     )?;
-    write_mesh_ply(&scene.mesh, &out.join("mesh.ply"))?;
+    ply::write_mesh(
+        out.join("mesh.ply"),
+        &scene.mesh,
+        PlyFormat::BinaryLittleEndian,
+    )?;
     write_file(&out.join("scene.json"), scene_json(&scene).as_bytes())?;
     let kept = reconstruction.points3d.len();
     let track_sum: usize = reconstruction
@@ -905,7 +910,7 @@ fn write_gray_png(path: &Path, image: &GrayImage) -> Result<(), SynthError> {
 }
 
 // ---------------------------------------------------------------------------------------
-// Ground-truth files. Stand-ins for core's COLMAP, Middlebury and PLY writers until they land.
+// Ground-truth cameras. Stand-ins for core's COLMAP and Middlebury writers until they land.
 
 fn model_name(model: CameraModel) -> &'static str {
     match model {
@@ -1025,45 +1030,4 @@ fn write_middlebury_par(scene: &Scene, path: &Path) -> Result<(), SynthError> {
         );
     }
     write_file(path, text.as_bytes())
-}
-
-/// Binary little-endian PLY: double positions, float normals, uchar colours, int faces.
-fn write_mesh_ply(mesh: &Mesh, path: &Path) -> Result<(), SynthError> {
-    let normals = mesh.normals.as_deref();
-    let colors = mesh.colors.as_deref();
-    let mut header = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment fresco synthetic ground truth\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\n",
-        mesh.positions.len()
-    );
-    if normals.is_some() {
-        header += "property float nx\nproperty float ny\nproperty float nz\n";
-    }
-    if colors.is_some() {
-        header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-    }
-    header += &format!(
-        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        mesh.faces.len()
-    );
-    let mut bytes = header.into_bytes();
-    for (i, p) in mesh.positions.iter().enumerate() {
-        for c in [p.x, p.y, p.z] {
-            bytes.extend_from_slice(&c.to_le_bytes());
-        }
-        if let Some(n) = normals {
-            for c in [n[i].x, n[i].y, n[i].z] {
-                bytes.extend_from_slice(&(c as f32).to_le_bytes());
-            }
-        }
-        if let Some(c) = colors {
-            bytes.extend_from_slice(&c[i]);
-        }
-    }
-    for f in &mesh.faces {
-        bytes.push(3);
-        for &v in f {
-            bytes.extend_from_slice(&(v as i32).to_le_bytes());
-        }
-    }
-    write_file(path, &bytes)
 }

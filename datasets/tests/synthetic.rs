@@ -126,7 +126,12 @@ fn visible_mesh_vertices_reproject_inside_the_masks() {
             ..small(shape, 5)
         };
         write_dataset(&config, &out, &NoProgress).unwrap();
-        let mesh = build_scene(&config).unwrap().mesh;
+        let mesh = fresco_core::ply::read_mesh(out.join("mesh.ply")).unwrap();
+        // The written mesh is the generator's, with its albedo colours.
+        let scene = build_scene(&config).unwrap();
+        assert_eq!(mesh.positions, scene.mesh.positions);
+        assert_eq!(mesh.faces, scene.mesh.faces);
+        assert_eq!(mesh.colors, scene.mesh.colors);
         let (camera, poses) = read_cameras(&out.join("sparse"));
         let map = SampleMap::new(&camera, 1).unwrap();
         let (mut checked, mut exact) = (0, 0);
