@@ -1087,6 +1087,30 @@ mod tests {
         assert!(model.points3d.len() > 1200, "{}", model.points3d.len());
     }
 
+    /// A focal prior off by a factor of 2 either way (templeSparseRing has no EXIF: the
+    /// 1.2 x width guess is 768 px against 1520 px): still all registered, f within 1%.
+    #[test]
+    fn focal_prior_off_by_two_is_recovered() {
+        for factor in [0.5, 2.0] {
+            let (truth, _) = synthetic_reconstruction(&SyntheticConfig {
+                cameras: 16,
+                points: 1000,
+                noise_px: 0.5,
+                params: vec![1500.0, 320.0, 240.0, -0.05],
+                seed: 3,
+                ..Default::default()
+            });
+            let mut input = input_from_tracks(&truth);
+            input.cameras.get_mut(&1).unwrap().params = vec![1500.0 * factor, 320.0, 240.0, 0.0];
+            let out = map(&input, &config(), &NoProgress).unwrap();
+            let m = &out.models[0];
+            assert_eq!(m.images.len(), 16, "factor {factor}");
+            let f = m.cameras[&1].params[0];
+            assert!((f - 1500.0).abs() < 15.0, "factor {factor}: f {f}");
+            assert!(evaluate_poses(m, &truth).unwrap().max_rotation_deg < 0.2);
+        }
+    }
+
     /// Two unrelated image sets (no match between them) give two models, each complete.
     #[test]
     fn unrelated_sets_give_two_models() {
