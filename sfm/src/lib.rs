@@ -18,15 +18,26 @@
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `ransac.rs`: the one RANSAC ([`ransac::ransac`] over any [`ransac::Estimator`]), LO-RANSAC
 //!   with MSAC scoring, adaptive iteration count, seeded deterministic sampling.
+//! - `feature_file.rs`: [`feature_file::Features`] (keypoints, u8 descriptors) and their binary file.
+//! - `match_file.rs`: the binary file of verified pairs ([`two_view::VerifiedPair`]).
+//! - `two_view.rs`: [`two_view::TwoViewGeometry`] of a pair (kind, F, E, H, relative pose, inliers).
+//! - `focal_prior.rs`: [`focal_prior::focal_from_exif`], [`focal_prior::read_calibration_file`].
+//! - `workspace.rs`: the folder layout and its readers [`workspace::read_images`],
+//!   [`workspace::read_features`], [`workspace::read_matches`].
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
 pub mod evaluate;
+pub mod feature_file;
+pub mod focal_prior;
 pub mod loss;
 pub mod mapper;
+pub mod match_file;
 pub mod pnp;
 pub mod ransac;
 pub mod silhouette;
 pub mod synthetic;
 pub mod tracks;
 pub mod triangulation;
+pub mod two_view;
+pub mod workspace;
