@@ -17,17 +17,24 @@
 
 pub mod apply;
 pub mod bench;
+pub mod closest;
 pub mod cluster;
 pub mod error;
 pub mod field;
 pub mod index;
 pub mod input;
+pub mod lru;
 pub mod mgrid;
 pub mod node_files;
+pub mod noise;
+pub mod paint;
 pub mod ply_input;
+pub mod refine;
+pub mod region;
 pub mod samples;
 pub mod sampling;
 pub mod store;
+pub mod transfer;
 
 pub use cluster::PositionRule;
 pub use error::{PstError, Result};
