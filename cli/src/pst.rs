@@ -25,8 +25,16 @@ pub struct PstArgs {
 enum PstCommand {
     /// Sample a huge PLY (mesh or point cloud) out of core into a PST folder.
     Sample(SampleArgs),
+    /// Run an editing script (JSON ops: fill, noise, smooth, project, refine, transfer, ...).
+    Paint(PaintArgs),
+    /// Up-sample a region from the 1-node files.
+    Refine(RefineArgs),
     /// Write the mesh with per-vertex colours evaluated from the PST.
     Apply(ApplyArgs),
+    /// Transfer colours from a textured model (GLB or OBJ) into the PST.
+    FromModel(FromModelArgs),
+    /// Export the PST as an octree texture (.foct).
+    ExportOctree(ExportOctreeArgs),
     /// Generate a large test mesh (subdivided, displaced sphere) streamed to a binary PLY.
     GenMesh(GenMeshArgs),
     /// Measure PST lookup throughput at points near the samples.
@@ -61,6 +69,62 @@ struct SampleArgs {
     /// Output PST folder.
     #[arg(short, long)]
     output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct PaintArgs {
+    /// PST folder.
+    pst: PathBuf,
+    /// JSON ops file.
+    ops: PathBuf,
+    /// Neighbourhood size of the PST (colours of refined samples).
+    #[arg(short, default_value_t = 8)]
+    k: usize,
+}
+
+#[derive(Args, Debug)]
+struct RefineArgs {
+    /// PST folder.
+    pst: PathBuf,
+    /// box:x0,y0,z0,x1,y1,z1 | sphere:x,y,z,r | all
+    #[arg(long)]
+    region: String,
+    /// Sub-grid resolution factor (default 2).
+    #[arg(long, conflicts_with_all = ["spacing", "full"])]
+    factor: Option<u32>,
+    /// Target sample spacing (world units).
+    #[arg(long, conflicts_with = "full")]
+    spacing: Option<f64>,
+    /// Keep every input point of the region.
+    #[arg(long)]
+    full: bool,
+    #[arg(short, default_value_t = 8)]
+    k: usize,
+}
+
+#[derive(Args, Debug)]
+struct FromModelArgs {
+    /// Textured model (.glb or .obj with texture or vertex colours).
+    model: PathBuf,
+    /// PST folder to colour.
+    pst: PathBuf,
+    /// Leave samples farther than this from the model unchanged.
+    #[arg(long)]
+    max_distance: Option<f64>,
+}
+
+#[derive(Args, Debug)]
+struct ExportOctreeArgs {
+    /// PST folder.
+    pst: PathBuf,
+    /// Output .foct file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Maximum depth.
+    #[arg(long, default_value_t = 8)]
+    depth: u32,
+    #[arg(short, default_value_t = 8)]
+    k: usize,
 }
 
 #[derive(Args, Debug)]
@@ -151,6 +215,59 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
                 "points_per_second": s.input_points as f64 / secs,
                 "warnings": s.warnings,
             }))
+        }
+        PstCommand::Paint(a) => {
+            let mut pst = Pst::open(&a.pst)?;
+            let reports =
+                fresco_pst::paint::run_script(&mut pst, &a.ops, field_config(a.k, None)?, &bars)?;
+            Ok(json!({ "pst": a.pst, "ops": reports, "in_core": pst.samples.len() }))
+        }
+        PstCommand::Refine(a) => {
+            use fresco_pst::refine::Resolution;
+            let mut pst = Pst::open(&a.pst)?;
+            let region = fresco_pst::region::Region::parse(&a.region)?;
+            let res = match (a.factor, a.spacing, a.full) {
+                (_, _, true) => Resolution::Full,
+                (_, Some(h), _) => Resolution::Spacing(h),
+                (f, None, false) => Resolution::Factor(f.unwrap_or(2)),
+            };
+            let r = fresco_pst::refine::refine(
+                &mut pst,
+                &region,
+                res,
+                field_config(a.k, None)?,
+                &bars,
+            )?;
+            pst.save()?;
+            Ok(json!({ "pst": a.pst, "refine": r, "in_core": pst.samples.len() }))
+        }
+        PstCommand::FromModel(a) => {
+            let mut pst = Pst::open(&a.pst)?;
+            let op = fresco_pst::paint::Op::Transfer {
+                model: std::path::absolute(&a.model)?,
+                max_distance: a.max_distance,
+                region: fresco_pst::region::Region::All,
+                channel: "rgb".into(),
+            };
+            let t = Instant::now();
+            let r = fresco_pst::paint::apply_op(
+                &mut pst,
+                &op,
+                std::path::Path::new("."),
+                FieldConfig::default(),
+                &bars,
+            )
+            .with_context(|| format!("transferring colours from {}", a.model.display()))?;
+            pst.save()?;
+            Ok(json!({ "pst": a.pst, "transfer": r, "seconds": t.elapsed().as_secs_f64() }))
+        }
+        PstCommand::ExportOctree(a) => {
+            let pst = Pst::open(&a.pst)?;
+            let all = pst.all_samples()?;
+            let field = fresco_pst::Field::new(&all, field_config(a.k, None)?);
+            let tex = fresco_pst::octree_texture::OctreeTexture::from_field(&field, a.depth)?;
+            tex.save(&a.output)?;
+            Ok(json!({ "output": a.output, "nodes": tex.children.len(), "depth": a.depth }))
         }
         PstCommand::Apply(a) => {
             let pst = Pst::open(&a.pst)?;

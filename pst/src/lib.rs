@@ -27,6 +27,7 @@ pub mod lru;
 pub mod mgrid;
 pub mod node_files;
 pub mod noise;
+pub mod octree_texture;
 pub mod paint;
 pub mod ply_input;
 pub mod refine;
