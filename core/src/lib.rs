@@ -13,8 +13,10 @@
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
-//! - [`FormatError`] (`error.rs`): what was wrong with a file and where.
+//! - [`FormatError`] (`error.rs`): what was wrong with a file and where; `atomic_file.rs`:
+//!   outputs written under a temporary name, then renamed.
 
+pub mod atomic_file;
 pub mod camera;
 pub mod colmap;
 pub mod error;

@@ -11,7 +11,6 @@
 //! Functions: [`read_par`], [`write_par`], [`views_to_reconstruction`].
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix3x4};
@@ -196,7 +195,7 @@ pub fn write_par(path: &Path, views: &[ParView]) -> Result<(), FormatError> {
         }
         s.push('\n');
     }
-    write_atomically(path, s.as_bytes())
+    crate::atomic_file::write_bytes_atomically(path, s.as_bytes())
 }
 
 /// The views as a reconstruction without points: camera and image ids = 1-based file order.
@@ -224,26 +223,4 @@ pub fn views_to_reconstruction(views: &[ParView]) -> Reconstruction {
         );
     }
     rec
-}
-
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(FormatError::io(&tmp, e));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| FormatError::io(path, e))
 }

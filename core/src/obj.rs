@@ -18,12 +18,13 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};
 
 use crate::FormatError;
+use crate::atomic_file::write_atomically;
 use crate::mesh::Mesh;
 
 /// A material of an OBJ file's `.mtl`.
@@ -506,25 +507,5 @@ pub fn write_obj(
             writeln!(w)?;
         }
         Ok(())
-    })
-}
-
-/// Writes through `body` into a temporary file next to `path`, then renames it over `path`.
-fn write_atomically(
-    path: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
-) -> Result<(), FormatError> {
-    let tmp = crate::ply::temporary_path(path);
-    let result = (|| {
-        let file = File::create(&tmp)?;
-        let mut w = BufWriter::with_capacity(1 << 20, file);
-        body(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        FormatError::io(path, e)
     })
 }

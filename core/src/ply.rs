@@ -2026,17 +2026,7 @@ pub struct PlyWriter {
     scratch: Vec<u8>,
 }
 
-/// A temporary name next to `path` (same folder, so the final rename is atomic).
-pub(crate) fn temporary_path(path: &Path) -> PathBuf {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "output".into());
-    let unique = COUNTER.fetch_add(1, Ordering::Relaxed);
-    path.with_file_name(format!(".{name}.tmp-{}-{unique}", std::process::id()))
-}
+pub(crate) use crate::atomic_file::temporary_path;
 
 impl PlyWriter {
     /// Creates the temporary file and writes the header.

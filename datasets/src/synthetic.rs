@@ -647,6 +647,7 @@ pub fn write_dataset(
         &scene.mesh,
         PlyFormat::BinaryLittleEndian,
     )?;
+    fresco_core::gltf::write_glb(&out.join("mesh.glb"), &scene.mesh, &[])?;
     write_file(&out.join("scene.json"), scene_json(&scene).as_bytes())?;
     let kept = reconstruction.points3d.len();
     let track_sum: usize = reconstruction
