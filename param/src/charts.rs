@@ -1,0 +1,382 @@
+//! Segmentation of a mesh into disc-like charts (paper 003 section 4.1, after ZMT05):
+//!
+//! 1. per connected component, the average geodesic distance ([`crate::agd`]) and its
+//!    Reeb graph ([`crate::reeb`]);
+//! 2. genus reduction ([`crate::genus`]): handles cut along short non-separating cycles,
+//!    rooted on the Reeb graph's loops, until the component has genus 0;
+//! 3. charts: faces joined across uncut edges;
+//! 4. every chart is checked as its own mesh (faces of the chart, vertices shared within it)
+//!    with `core::Topology`: one component, manifold, one boundary loop, Euler
+//!    characteristic 1. A chart that is not a disc is split in two at the area-weighted
+//!    median of a geodesic distance (from its farthest vertex when it is closed, from the
+//!    shortest path joining two of its boundary loops otherwise — that path crosses the
+//!    annulus, so the piece around it is a strip) and the pieces are checked again.
+//!    Single faces are discs, so this terminates.
+
+use std::collections::{HashSet, VecDeque};
+
+use fresco_core::nalgebra::Point3;
+use fresco_core::{Mesh, Progress, Topology};
+
+use crate::ParamError;
+use crate::agd::average_geodesic_distance;
+use crate::genus::{edge_key, non_manifold, reduce_genus};
+use crate::geodesic::{Method, SurfaceGraph, path_to_source};
+use crate::reeb::ReebGraph;
+
+/// Parameters of the segmentation.
+#[derive(Clone, Debug)]
+pub struct ChartConfig {
+    /// Base vertices of the average geodesic distance ("a few dozen", ZMT05).
+    pub agd_bases: usize,
+    /// Intervals of the AGD range in the Reeb graph.
+    pub reeb_levels: u32,
+    /// Geodesic distance method for the AGD and the splits.
+    pub geodesic: Method,
+}
+
+impl Default for ChartConfig {
+    fn default() -> Self {
+        ChartConfig {
+            agd_bases: 32,
+            reeb_levels: 24,
+            geodesic: Method::FastMarching,
+        }
+    }
+}
+
+/// The segmentation: the contract with the unwrapping.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Charts {
+    /// Chart id per face, `0..count`.
+    pub face_chart: Vec<u32>,
+    pub count: u32,
+    /// Mesh edges (sorted vertex pairs, sorted list) whose two faces lie in different
+    /// charts: the seams the cuts run along.
+    pub cut_edges: Vec<[u32; 2]>,
+    /// Total genus of the input (sum over its connected components).
+    pub genus_before: u32,
+    /// Handles cut by genus reduction (equals `genus_before` when it succeeded).
+    pub handles_cut: u32,
+}
+
+/// A connected component of the input as its own mesh.
+struct Part {
+    positions: Vec<Point3<f64>>,
+    faces: Vec<[u32; 3]>,
+    /// Global face of each local face.
+    face_global: Vec<u32>,
+}
+
+/// Faces `set` of `faces` as a mesh over local vertices; returns (faces, local -> global vertex).
+pub fn sub_mesh(faces: &[[u32; 3]], set: &[u32]) -> (Vec<[u32; 3]>, Vec<u32>) {
+    let mut local = std::collections::HashMap::new();
+    let mut global = Vec::new();
+    let out = set
+        .iter()
+        .map(|&f| {
+            faces[f as usize].map(|v| {
+                *local.entry(v).or_insert_with(|| {
+                    global.push(v);
+                    (global.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    (out, global)
+}
+
+/// True when `faces` (over `vertex_count` vertices, all used) form one topological disc.
+pub fn is_disc(faces: &[[u32; 3]], vertex_count: usize) -> bool {
+    let Ok(topo) = Topology::from_faces(faces, vertex_count) else {
+        return false;
+    };
+    let c = topo.components();
+    c.len() == 1
+        && c[0].manifold
+        && c[0].boundary_loops == 1
+        && c[0].euler_characteristic == 1
+        && topo.open_boundary_chains().is_empty()
+}
+
+/// Segments `mesh` into disc charts; see the module documentation.
+pub fn segment(
+    mesh: &Mesh,
+    cfg: &ChartConfig,
+    progress: &dyn Progress,
+) -> Result<Charts, ParamError> {
+    if mesh.faces.is_empty() {
+        return Err(ParamError::EmptyMesh);
+    }
+    if cfg.agd_bases == 0 || cfg.reeb_levels == 0 {
+        return Err(ParamError::Config(
+            "agd_bases and reeb_levels must be at least 1".into(),
+        ));
+    }
+    if let Some(v) = mesh
+        .positions
+        .iter()
+        .position(|p| !p.coords.iter().all(|x| x.is_finite()))
+    {
+        return Err(ParamError::NonFinitePosition { vertex: v as u32 });
+    }
+    let topo = Topology::build(mesh)?;
+    if !topo.non_manifold_edges().is_empty() || !topo.non_manifold_vertices().is_empty() {
+        return Err(non_manifold(&topo));
+    }
+    let ncomp = topo.components().len();
+    let mut comp_faces: Vec<Vec<u32>> = vec![Vec::new(); ncomp];
+    for (f, &c) in topo.face_components().iter().enumerate() {
+        comp_faces[c as usize].push(f as u32);
+    }
+    progress.begin("charting", ncomp as u64);
+    let mut face_chart = vec![u32::MAX; mesh.faces.len()];
+    let mut count = 0u32;
+    let (mut genus_before, mut handles_cut) = (0, 0);
+    for set in comp_faces {
+        let (faces, global) = sub_mesh(&mesh.faces, &set);
+        let part = Part {
+            positions: global.iter().map(|&v| mesh.positions[v as usize]).collect(),
+            faces,
+            face_global: set,
+        };
+        let (charts, g, h) = segment_part(&part, cfg)?;
+        genus_before += g;
+        handles_cut += h;
+        for chart in charts {
+            for f in chart {
+                face_chart[part.face_global[f as usize] as usize] = count;
+            }
+            count += 1;
+        }
+        progress.advance(1);
+    }
+    progress.end();
+    let mut cut_edges: Vec<[u32; 2]> = (0..topo.edges().len() as u32)
+        .filter(|&e| {
+            let fs: Vec<u32> = topo.edge_faces(e).collect();
+            fs.len() == 2 && face_chart[fs[0] as usize] != face_chart[fs[1] as usize]
+        })
+        .map(|e| topo.edges()[e as usize])
+        .collect();
+    cut_edges.sort_unstable();
+    Ok(Charts {
+        face_chart,
+        count,
+        cut_edges,
+        genus_before,
+        handles_cut,
+    })
+}
+
+/// One connected component: returns its charts as local face lists, its genus and the
+/// handles cut.
+fn segment_part(part: &Part, cfg: &ChartConfig) -> Result<(Vec<Vec<u32>>, u32, u32), ParamError> {
+    let graph = SurfaceGraph::new(&part.positions, &part.faces);
+    let agd = average_geodesic_distance(&graph, part.faces[0][0], cfg.agd_bases, cfg.geodesic);
+    let reeb = ReebGraph::build(
+        &part.positions,
+        &part.faces,
+        &agd.normalised,
+        cfg.reeb_levels,
+    )?;
+    // A root for the loop search on each Reeb loop: the smallest node of the loop, where the
+    // handle is thinnest.
+    let hints: Vec<u32> = reeb
+        .loops()
+        .iter()
+        .filter_map(|lp| {
+            lp.iter()
+                .min_by(|a, b| reeb.graph[**a].area.total_cmp(&reeb.graph[**b].area))
+                .map(|&n| reeb.graph[n].min_vertex)
+        })
+        .collect();
+    let genus = reduce_genus(&part.positions, &part.faces, &hints)?;
+    tracing::debug!(
+        reeb_loops = reeb.loop_count(),
+        genus = genus.genus_before,
+        cut = genus.handles_cut,
+        "genus reduction"
+    );
+    let initial = components_across(&part.faces, &part.positions, &genus.cut_edges)?;
+    let charts = make_discs(&part.positions, &part.faces, initial, cfg.geodesic)?;
+    Ok((charts, genus.genus_before, genus.handles_cut))
+}
+
+/// Face sets joined across the edges not in `cut`.
+fn components_across(
+    faces: &[[u32; 3]],
+    positions: &[Point3<f64>],
+    cut: &HashSet<[u32; 2]>,
+) -> Result<Vec<Vec<u32>>, ParamError> {
+    let topo = Topology::from_faces(faces, positions.len())?;
+    let mut label = vec![u32::MAX; faces.len()];
+    let mut out = Vec::new();
+    for seed in 0..faces.len() {
+        if label[seed] != u32::MAX {
+            continue;
+        }
+        let id = out.len() as u32;
+        let mut set = Vec::new();
+        let mut queue = VecDeque::from([seed as u32]);
+        label[seed] = id;
+        while let Some(f) = queue.pop_front() {
+            set.push(f);
+            for h in 3 * f..3 * f + 3 {
+                let c = (h % 3) as usize;
+                let fv = faces[f as usize];
+                if cut.contains(&edge_key(fv[c], fv[(c + 1) % 3])) {
+                    continue;
+                }
+                if let Some(o) = topo.opposite(h) {
+                    let g = o / 3;
+                    if label[g as usize] == u32::MAX {
+                        label[g as usize] = id;
+                        queue.push_back(g);
+                    }
+                }
+            }
+        }
+        out.push(set);
+    }
+    Ok(out)
+}
+
+/// Splits every non-disc face set until all are discs (see the module documentation).
+fn make_discs(
+    positions: &[Point3<f64>],
+    faces: &[[u32; 3]],
+    initial: Vec<Vec<u32>>,
+    method: Method,
+) -> Result<Vec<Vec<u32>>, ParamError> {
+    let mut work = initial;
+    let mut done = Vec::new();
+    while let Some(set) = work.pop() {
+        let (sub, global) = sub_mesh(faces, &set);
+        let topo = Topology::from_faces(&sub, global.len())?;
+        let comps = topo.components();
+        if comps.len() > 1 {
+            let mut parts = vec![Vec::new(); comps.len()];
+            for (i, &c) in topo.face_components().iter().enumerate() {
+                parts[c as usize].push(set[i]);
+            }
+            work.extend(parts);
+            continue;
+        }
+        let c = &comps[0];
+        if c.manifold
+            && c.boundary_loops == 1
+            && c.euler_characteristic == 1
+            && topo.open_boundary_chains().is_empty()
+        {
+            done.push(set);
+            continue;
+        }
+        let pos: Vec<Point3<f64>> = global.iter().map(|&v| positions[v as usize]).collect();
+        let side = split_in_two(&pos, &sub, &topo, method);
+        let mut a = Vec::new();
+        let mut b = Vec::new();
+        for (i, &f) in set.iter().enumerate() {
+            if side[i] { a.push(f) } else { b.push(f) }
+        }
+        if a.is_empty() || b.is_empty() {
+            // Degenerate distances (all equal): halve in breadth-first order instead.
+            let order = bfs_order(&sub, &topo);
+            let half = order.len() / 2;
+            work.push(order[..half].iter().map(|&i| set[i as usize]).collect());
+            work.push(order[half..].iter().map(|&i| set[i as usize]).collect());
+        } else {
+            work.push(a);
+            work.push(b);
+        }
+    }
+    Ok(done)
+}
+
+/// Which side of a split each face of a non-disc chart goes to (see the module docs).
+fn split_in_two(
+    pos: &[Point3<f64>],
+    faces: &[[u32; 3]],
+    topo: &Topology,
+    method: Method,
+) -> Vec<bool> {
+    let graph = SurfaceGraph::new(pos, faces);
+    let loops = topo.boundary_loops();
+    let seeds: Vec<u32> = if loops.len() >= 2 {
+        // Shortest edge path from loop 0 to the nearest other loop.
+        let (dist, parent) = graph.shortest_path_tree(&loops[0], |_, _, l| l);
+        let first: HashSet<u32> = loops[0].iter().copied().collect();
+        let end = loops[1..]
+            .iter()
+            .flatten()
+            .filter(|v| !first.contains(v))
+            .min_by(|a, b| dist[**a as usize].total_cmp(&dist[**b as usize]))
+            .copied()
+            .unwrap_or(loops[1][0]);
+        path_to_source(&parent, end)
+    } else {
+        // The vertex farthest from the boundary (or from vertex 0 on a closed chart).
+        let from: Vec<u32> = if loops.is_empty() {
+            vec![faces[0][0]]
+        } else {
+            loops[0].clone()
+        };
+        let d = graph.distances(&from, Method::Dijkstra);
+        let far = (0..d.len())
+            .filter(|&v| d[v].is_finite())
+            .max_by(|&a, &b| d[a].total_cmp(&d[b]))
+            .unwrap_or(0) as u32;
+        vec![far]
+    };
+    let d = graph.distances(&seeds, method);
+    let value: Vec<f64> = faces
+        .iter()
+        .map(|f| f.iter().map(|&v| d[v as usize]).sum::<f64>() / 3.0)
+        .collect();
+    let area: Vec<f64> = faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|v| pos[v as usize]);
+            (b - a).cross(&(c - a)).norm()
+        })
+        .collect();
+    // Area-weighted median of the face values.
+    let mut order: Vec<usize> = (0..faces.len()).collect();
+    order.sort_by(|&a, &b| value[a].total_cmp(&value[b]));
+    let total: f64 = area.iter().sum();
+    let mut acc = 0.0;
+    let mut threshold = value[order[order.len() / 2]];
+    for &i in &order {
+        acc += area[i];
+        if acc >= 0.5 * total {
+            threshold = value[i];
+            break;
+        }
+    }
+    value.iter().map(|&x| x <= threshold).collect()
+}
+
+/// Faces in breadth-first order over shared edges.
+fn bfs_order(faces: &[[u32; 3]], topo: &Topology) -> Vec<u32> {
+    let mut seen = vec![false; faces.len()];
+    let mut order = Vec::with_capacity(faces.len());
+    for s in 0..faces.len() {
+        if seen[s] {
+            continue;
+        }
+        seen[s] = true;
+        let mut queue = VecDeque::from([s as u32]);
+        while let Some(f) = queue.pop_front() {
+            order.push(f);
+            for h in 3 * f..3 * f + 3 {
+                if let Some(o) = topo.opposite(h)
+                    && !seen[(o / 3) as usize]
+                {
+                    seen[(o / 3) as usize] = true;
+                    queue.push_back(o / 3);
+                }
+            }
+        }
+    }
+    order
+}
