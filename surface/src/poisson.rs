@@ -1,0 +1,774 @@
+//! Screened Poisson surface reconstruction (Kazhdan and Hoppe 2013, "SPSR" below).
+//!
+//! The indicator function `chi` minimises (SPSR eq. 4, with per-sample area weights)
+//!
+//! ```text
+//! E(chi) = int |grad chi - V|^2 dx + alpha * sum_p A_p chi(p)^2
+//! ```
+//!
+//! over the unit cube the samples are scaled into, where `V = sum_p A_p n_p K_p` is the
+//! normal field splatted with a unit-integral trilinear kernel at the finest depth (so
+//! `int V = sum_p A_p n_p`, the integral of the normal over the surface) and `A_p` is the
+//! surface area a sample stands for (`1 / sampling density`, estimated below). Weighting by
+//! area is SPSR's `Area(P) / sum w * w(p)` with `w(p) = A_p`: samples in dense regions do not
+//! pull harder. The Laplacian's entries at depth `d` scale like `h = 2^-d` while point
+//! evaluations do not, so, as SPSR does, the level-`d` system uses `alpha_d = point_weight *
+//! 2^d`: the screening has the same strength relative to the gradient term at every level.
+//! With one alpha for all levels the coarse levels are swamped by screening (60x the
+//! Laplacian at depth 3 for depth 8), their solution flattens towards 0 and the far field
+//! (e.g. the hole of a torus, represented only by coarse levels) ends up on the wrong side of
+//! the iso-value: the torus closed up in the tests.
+//!
+//! Discretisation: degree-1 B-splines on every level of the octree (`bspline.rs`,
+//! `octree.rs`); `chi = sum_d sum_{i in S_d} x_{d,i} B_{d,i}`. The normal equations are
+//! `(L + alpha S) x = b` with `L_ij = int grad B_i . grad B_j`, `S_ij = sum_p A_p B_i(p)
+//! B_j(p)`, `b_i = int grad B_i . V`.
+//!
+//! Solver (SPSR section 4.2, cascadic): for each depth from coarse to fine, solve for the
+//! level's own coefficients with everything coarser fixed:
+//! `A_d x_d = b_d - A_{d,<d} x_{<d}`. The coarser part is carried as `y_{d-1}`, the
+//! coefficients of `sum_{d' < d} chi_{d'}` in level `d-1`'s hats, and prolonged to level `d`
+//! by the two-scale relation (`z = P y_{d-1}`): on the ghost band the prolongation is exact
+//! because every parent of a `G_d` vertex is in `S_{d-1}` (octree.rs), so the coupling to all
+//! coarser levels is just `L_d z + alpha S_d z`, one level's stencil. Then `y_d = z + x_d`.
+//! Each level runs Jacobi-preconditioned CG (`solver.rs`).
+//!
+//! Iso-value: the area-weighted average of `chi` at the samples (SPSR section 4.4).
+//! Extraction: marching cubes on the finest level (`isosurface.rs`).
+
+use std::time::Instant;
+
+use fresco_core::Mesh;
+use fresco_core::Progress;
+use fresco_core::nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::bspline;
+use crate::isosurface;
+use crate::octree::{self, Level, MISSING, Map, SortedKeys};
+use crate::solver::{self, CgReport};
+
+/// Settings of [`reconstruct`]; the defaults are PoissonRecon's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoissonConfig {
+    /// Finest octree depth: the unit cube around the samples is cut into `2^depth` cells per
+    /// axis where there are samples. 2 ..= 12.
+    pub depth: u32,
+    /// Screening weight (SPSR's alpha at the finest level); 0 gives unscreened Poisson.
+    pub point_weight: f64,
+    /// How many samples a node should hold: the unit of the density written per vertex
+    /// (`PoissonOutput::vertex_density` is the depth at which a node would hold this many).
+    pub samples_per_node: f64,
+    /// The cube is the samples' bounding box enlarged by this factor (>= 1).
+    pub scale: f64,
+    /// Levels up to this depth cover the whole cube (coarse, cheap, they carry the far field).
+    pub full_depth: u32,
+    /// CG iterations per band level (the cascade only corrects detail there).
+    pub cg_iterations: usize,
+    /// CG iterations on the full levels.
+    pub coarse_cg_iterations: usize,
+    /// Relative residual at which a level's CG stops early.
+    pub cg_tolerance: f64,
+}
+
+impl Default for PoissonConfig {
+    fn default() -> Self {
+        PoissonConfig {
+            depth: 9,
+            point_weight: 4.0,
+            samples_per_node: 1.5,
+            scale: 1.1,
+            full_depth: 5,
+            cg_iterations: 40,
+            coarse_cg_iterations: 200,
+            cg_tolerance: 1e-4,
+        }
+    }
+}
+
+/// What one octree level held and how its solve went.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LevelStats {
+    pub depth: u32,
+    /// Unknowns (active vertices) and ghost vertices of the level.
+    pub active: usize,
+    pub ghost: usize,
+    pub cg: CgReport,
+}
+
+/// Figures of one reconstruction.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PoissonStats {
+    /// Samples used, and samples dropped for a non-finite position or a zero/non-finite normal.
+    pub samples: usize,
+    pub dropped: usize,
+    pub levels: Vec<LevelStats>,
+    /// The level set extracted (of the unit-cube indicator).
+    pub iso_value: f64,
+    /// Cubes the extraction followed outside the sample band.
+    pub flood_cells: usize,
+    /// Wall-clock seconds: octree and density, system and solve, extraction.
+    pub seconds_octree: f64,
+    pub seconds_solve: f64,
+    pub seconds_extract: f64,
+}
+
+/// The reconstructed surface.
+#[derive(Clone, Debug, Default)]
+pub struct PoissonOutput {
+    /// Closed (for closed, well-sampled input) manifold triangle mesh, outward normals,
+    /// in the input's coordinates.
+    pub mesh: Mesh,
+    /// Per output vertex: `log4(sigma / samples_per_node)` with `sigma` the sampling density
+    /// (samples per unit area of the unit cube) estimated at the vertex, i.e. the octree depth
+    /// at which a node crossing the surface there would hold `samples_per_node` samples, as
+    /// PoissonRecon's `--density`. Low where Poisson bridged a hole; trim below e.g. 7.
+    pub vertex_density: Vec<f32>,
+    pub stats: PoissonStats,
+}
+
+/// Why a reconstruction could not run.
+#[derive(Debug, Error, PartialEq)]
+pub enum PoissonError {
+    #[error("{points} points but {normals} normals: every point needs a normal")]
+    LengthMismatch { points: usize, normals: usize },
+    #[error(
+        "only {usable} usable oriented points ({dropped} dropped for NaN/infinite coordinates \
+         or zero normals); Poisson reconstruction needs at least 10"
+    )]
+    TooFewPoints { usable: usize, dropped: usize },
+    #[error("all points coincide: the point cloud has no extent")]
+    NoExtent,
+    #[error("invalid Poisson setting: {0}")]
+    InvalidConfig(String),
+}
+
+/// Smallest number of samples accepted.
+const MIN_SAMPLES: usize = 10;
+
+/// `mean over u of sum_j quadratic(u)_j^2` (= 0.55): the factor between the kernel-smoothed
+/// sample count and `sigma * h^2` for a plane through the density grid (derivation in
+/// `Density`).
+const KERNEL_PLANE_FACTOR: f64 = 0.55;
+
+fn check_config(cfg: &PoissonConfig) -> Result<(), PoissonError> {
+    let bad = |m: String| Err(PoissonError::InvalidConfig(m));
+    if !(2..=12).contains(&cfg.depth) {
+        return bad(format!("depth {} is outside 2..=12", cfg.depth));
+    }
+    if !(cfg.point_weight >= 0.0 && cfg.point_weight.is_finite()) {
+        return bad(format!("point weight {} must be >= 0", cfg.point_weight));
+    }
+    if !(cfg.samples_per_node > 0.0 && cfg.samples_per_node.is_finite()) {
+        return bad(format!(
+            "samples per node {} must be > 0",
+            cfg.samples_per_node
+        ));
+    }
+    if !(cfg.scale >= 1.0 && cfg.scale.is_finite()) {
+        return bad(format!("scale {} must be >= 1", cfg.scale));
+    }
+    if cfg.cg_tolerance.is_nan() || cfg.cg_tolerance < 0.0 {
+        return bad(format!("CG tolerance {} must be >= 0", cfg.cg_tolerance));
+    }
+    Ok(())
+}
+
+/// Sampling density estimated by splatting the samples with a quadratic B-spline on a dense
+/// grid of depth `kernel_depth = min(depth - 2, 8)` (PoissonRecon's kernel depth is also two
+/// levels above the finest; 256^3 floats at most).
+///
+/// For a plane with `sigma` samples per unit area, the splatted count at a grid cell is
+/// `sigma h^2 w(dist)` (the in-plane integral of the tensor kernel is `h^2`) and its smoothed
+/// value at a point on the plane is `sigma h^2 sum_j w_j^2`, which averages
+/// [`KERNEL_PLANE_FACTOR`] over plane positions (between 0.5 and 0.59). Hence
+/// `sigma ~= rho / (0.55 h^2)`.
+struct Density {
+    n: i64,
+    grid: Vec<f32>,
+}
+
+impl Density {
+    fn weights(&self, u: [f64; 3]) -> ([i64; 3], [[f64; 3]; 3]) {
+        let mut c = [0i64; 3];
+        let mut w = [[0.0; 3]; 3];
+        for a in 0..3 {
+            let x = u[a] * self.n as f64;
+            let ci = (x.floor() as i64).clamp(0, self.n - 1);
+            c[a] = ci;
+            w[a] = bspline::quadratic((x - (ci as f64 + 0.5)).clamp(-0.5, 0.5));
+        }
+        (c, w)
+    }
+
+    fn build(depth: u32, samples: &[[f64; 3]]) -> Density {
+        let n = 1i64 << depth;
+        let mut d = Density {
+            n,
+            grid: vec![0.0; (n * n * n) as usize],
+        };
+        for u in samples {
+            let (c, w) = d.weights(*u);
+            for (dz, wz) in w[2].iter().enumerate() {
+                let z = c[2] + dz as i64 - 1;
+                if z < 0 || z >= n {
+                    continue;
+                }
+                for (dy, wy) in w[1].iter().enumerate() {
+                    let y = c[1] + dy as i64 - 1;
+                    if y < 0 || y >= n {
+                        continue;
+                    }
+                    for (dx, wx) in w[0].iter().enumerate() {
+                        let x = c[0] + dx as i64 - 1;
+                        if x < 0 || x >= n {
+                            continue;
+                        }
+                        d.grid[((z * n + y) * n + x) as usize] += (wx * wy * wz) as f32;
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// Kernel-smoothed sample count at `u`.
+    fn smoothed(&self, u: [f64; 3]) -> f64 {
+        let n = self.n;
+        let (c, w) = self.weights(u);
+        let mut s = 0.0;
+        for (dz, wz) in w[2].iter().enumerate() {
+            let z = c[2] + dz as i64 - 1;
+            if z < 0 || z >= n {
+                continue;
+            }
+            for (dy, wy) in w[1].iter().enumerate() {
+                let y = c[1] + dy as i64 - 1;
+                if y < 0 || y >= n {
+                    continue;
+                }
+                for (dx, wx) in w[0].iter().enumerate() {
+                    let x = c[0] + dx as i64 - 1;
+                    if x < 0 || x >= n {
+                        continue;
+                    }
+                    s += wx * wy * wz * self.grid[((z * n + y) * n + x) as usize] as f64;
+                }
+            }
+        }
+        s
+    }
+
+    /// Samples per unit area at `u`.
+    fn sigma(&self, u: [f64; 3]) -> f64 {
+        let h = 1.0 / self.n as f64;
+        self.smoothed(u) / (KERNEL_PLANE_FACTOR * h * h)
+    }
+}
+
+/// The samples of one level: each sample's cell (index into `cells`) and the level-node
+/// indices of that cell's 8 corners.
+struct LevelSamples {
+    cell_of: Vec<u32>,
+    corners: Vec<u32>,
+}
+
+impl LevelSamples {
+    fn new(level: &Level, cells: &SortedKeys, sample_keys: &[u64]) -> LevelSamples {
+        let cell_of = sample_keys
+            .par_iter()
+            .map(|&k| cells.find(k).expect("sample cell indexed") as u32)
+            .collect();
+        let corners = level.lookup_from(cells, Map::Same, &octree::corners8());
+        debug_assert!(corners.iter().all(|&c| c != MISSING));
+        LevelSamples { cell_of, corners }
+    }
+
+    #[inline]
+    fn corners_of(&self, s: usize) -> &[u32] {
+        let c = self.cell_of[s] as usize;
+        &self.corners[c * 8..c * 8 + 8]
+    }
+}
+
+/// Trilinear weights of sample `u` in its cell at depth `d`.
+#[inline]
+fn cell_weights(u: [f64; 3], d: u32) -> [f64; 8] {
+    let n = (1i64 << d) as f64;
+    let mut t = [0.0; 3];
+    for a in 0..3 {
+        let x = u[a] * n;
+        let c = x.floor().clamp(0.0, n - 1.0);
+        t[a] = (x - c).clamp(0.0, 1.0);
+    }
+    bspline::trilinear(t)
+}
+
+#[inline]
+fn cell_key(u: [f64; 3], d: u32) -> u64 {
+    let n = 1i64 << d;
+    let c = |x: f64| ((x * n as f64).floor() as i64).clamp(0, n - 1);
+    octree::pack([c(u[0]), c(u[1]), c(u[2])])
+}
+
+/// One level's operator `h L + alpha S` restricted to its active vertices.
+struct LevelSystem<'a> {
+    level: &'a Level,
+    /// Active vertex x 27 ring offsets -> node index (active or ghost) or MISSING.
+    ring: Vec<u32>,
+    /// `h L` interior stencil (27 entries, `octree::ring27` order).
+    stencil: [f64; 27],
+    h: f64,
+    alpha: f64,
+    samples: &'a [[f64; 3]],
+    area: &'a [f64],
+    ls: LevelSamples,
+}
+
+impl LevelSystem<'_> {
+    fn laplacian_row(&self, i: usize, x: &[f64], include_ghosts: bool) -> f64 {
+        let na = self.level.active_len();
+        let row = &self.ring[i * 27..i * 27 + 27];
+        let c = octree::unpack(self.level.active.keys[i]);
+        let n = self.level.n();
+        let boundary = bspline::on_boundary(c, n);
+        let offs = RING.get_or_init(octree::ring27);
+        let mut s = 0.0;
+        for (o, &j) in row.iter().enumerate() {
+            if j == MISSING || (!include_ghosts && j as usize >= na) {
+                continue;
+            }
+            let w = if boundary {
+                self.h * bspline::laplacian_entry(c, offs[o], n)
+            } else {
+                self.stencil[o]
+            };
+            s += w * x[j as usize];
+        }
+        s
+    }
+
+    /// `out = (h L + alpha S) x` over the active vertices; `x` has the active length
+    /// (ghost unknowns are zero in the solve).
+    fn apply(&self, x: &[f64], out: &mut [f64]) {
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(i, o)| *o = self.laplacian_row(i, x, false));
+        if self.alpha > 0.0 {
+            let vals = self.sample_values(x);
+            for (s, v) in vals.iter().enumerate() {
+                let w = cell_weights(self.samples[s], self.level.depth);
+                let f = self.alpha * self.area[s] * v;
+                for (k, &c) in self.ls.corners_of(s).iter().enumerate() {
+                    out[c as usize] += f * w[k];
+                }
+            }
+        }
+    }
+
+    /// The function `sum_j x_j B_j` at every sample (corner nodes beyond `x` count as 0).
+    fn sample_values(&self, x: &[f64]) -> Vec<f64> {
+        (0..self.samples.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|s| {
+                let w = cell_weights(self.samples[s], self.level.depth);
+                self.ls
+                    .corners_of(s)
+                    .iter()
+                    .zip(w.iter())
+                    .map(|(&c, w)| x.get(c as usize).copied().unwrap_or(0.0) * w)
+                    .sum()
+            })
+            .collect()
+    }
+
+    fn diagonal(&self) -> Vec<f64> {
+        let n = self.level.n();
+        let mut d: Vec<f64> = (0..self.level.active_len())
+            .into_par_iter()
+            .map(|i| {
+                let c = octree::unpack(self.level.active.keys[i]);
+                self.h * bspline::laplacian_entry(c, [0, 0, 0], n)
+            })
+            .collect();
+        for s in 0..self.samples.len() {
+            let w = cell_weights(self.samples[s], self.level.depth);
+            for (k, &c) in self.ls.corners_of(s).iter().enumerate() {
+                d[c as usize] += self.alpha * self.area[s] * w[k] * w[k];
+            }
+        }
+        d
+    }
+}
+
+static RING: std::sync::OnceLock<Vec<[i32; 3]>> = std::sync::OnceLock::new();
+
+/// Screened Poisson reconstruction of the oriented points (`normals` need not be unit
+/// length; only their direction is used).
+pub fn reconstruct(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    cfg: &PoissonConfig,
+    progress: &dyn Progress,
+) -> Result<PoissonOutput, PoissonError> {
+    check_config(cfg)?;
+    if points.len() != normals.len() {
+        return Err(PoissonError::LengthMismatch {
+            points: points.len(),
+            normals: normals.len(),
+        });
+    }
+    let t0 = Instant::now();
+    // Usable samples.
+    let mut pts = Vec::with_capacity(points.len());
+    let mut nrm = Vec::with_capacity(points.len());
+    for (p, n) in points.iter().zip(normals) {
+        let len = n.norm();
+        if p.coords.iter().all(|v| v.is_finite()) && len.is_finite() && len > 0.0 {
+            pts.push(*p);
+            nrm.push(n / len);
+        }
+    }
+    let dropped = points.len() - pts.len();
+    if pts.len() < MIN_SAMPLES {
+        return Err(PoissonError::TooFewPoints {
+            usable: pts.len(),
+            dropped,
+        });
+    }
+    let bbox = fresco_core::mesh::Aabb::from_points(&pts).expect("non-empty");
+    let ext = bbox.extent();
+    let size = ext.x.max(ext.y).max(ext.z) * cfg.scale;
+    if size <= 0.0 || !size.is_finite() {
+        return Err(PoissonError::NoExtent);
+    }
+    let origin = bbox.center() - Vector3::repeat(size / 2.0);
+    let to_unit = |p: &Point3<f64>| {
+        let v = (p - origin) / size;
+        [v.x, v.y, v.z]
+    };
+    let depth = cfg.depth;
+    let full_depth = cfg.full_depth.min(depth);
+    // Sort samples by their finest cell for memory locality.
+    let mut order: Vec<(u64, u32)> = pts
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (cell_key(to_unit(p), depth), i as u32))
+        .collect();
+    order.par_sort_unstable();
+    let samples: Vec<[f64; 3]> = order
+        .iter()
+        .map(|&(_, i)| to_unit(&pts[i as usize]))
+        .collect();
+    let snormals: Vec<[f64; 3]> = order
+        .iter()
+        .map(|&(_, i)| {
+            let n = nrm[i as usize];
+            [n.x, n.y, n.z]
+        })
+        .collect();
+
+    // Sampling density and per-sample area.
+    let kernel_depth = depth.saturating_sub(2).clamp(1, 8);
+    let density = Density::build(kernel_depth, &samples);
+    let area: Vec<f64> = samples
+        .par_iter()
+        .map(|&u| 1.0 / density.sigma(u).max(1e-300))
+        .collect();
+
+    // Octree levels: sample cells per depth, then the band (or full) vertex sets.
+    let mut cells: Vec<SortedKeys> = vec![SortedKeys::default(); depth as usize + 1];
+    cells[depth as usize] = SortedKeys::from_sorted({
+        let mut k: Vec<u64> = order.iter().map(|o| o.0).collect();
+        k.dedup();
+        k
+    });
+    for d in (0..depth as usize).rev() {
+        let coarse: Vec<u64> = cells[d + 1]
+            .keys
+            .par_iter()
+            .map(|&k| {
+                let c = octree::unpack(k);
+                octree::pack([c[0] >> 1, c[1] >> 1, c[2] >> 1])
+            })
+            .collect();
+        cells[d] = SortedKeys::from_unsorted(coarse);
+    }
+    let levels: Vec<Level> = (0..=depth)
+        .map(|d| {
+            if d <= full_depth {
+                Level::full(d)
+            } else {
+                Level::band(d, cells[d as usize].clone())
+            }
+        })
+        .collect();
+    let seconds_octree = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+
+    // Right-hand side at the finest depth: b_i = int grad B_i . V, with V's coefficients
+    // V_c = sum_p A_p n_p B_c(p) / h^3 (unit-integral splat). V lives on the corners of the
+    // sample cells, so b is supported in S_D (corners + one ring) and computed exactly there.
+    let finest = &levels[depth as usize];
+    let ring = octree::ring27();
+    let mut rhs: Vec<Vec<f64>> = vec![Vec::new(); depth as usize + 1];
+    {
+        let sample_keys: Vec<u64> = order.iter().map(|o| o.0).collect();
+        let ls = LevelSamples::new(finest, &cells[depth as usize], &sample_keys);
+        let mut vsum = vec![[0.0f64; 3]; finest.len()];
+        for s in 0..samples.len() {
+            let w = cell_weights(samples[s], depth);
+            for (k, &c) in ls.corners_of(s).iter().enumerate() {
+                for a in 0..3 {
+                    vsum[c as usize][a] += area[s] * snormals[s][a] * w[k];
+                }
+            }
+        }
+        // int grad B_i . V = sum_o (h^2 divergence_entry) . vsum / h^3.
+        let h = 1.0 / (1u64 << depth) as f64;
+        let n = finest.n();
+        let table = finest.lookup_from(&finest.active, Map::Same, &ring);
+        rhs[depth as usize] = (0..finest.active_len())
+            .into_par_iter()
+            .map(|i| {
+                let c = octree::unpack(finest.active.keys[i]);
+                let mut s = 0.0;
+                for (o, off) in ring.iter().enumerate() {
+                    let j = table[i * 27 + o];
+                    if j == MISSING {
+                        continue;
+                    }
+                    let dv = bspline::divergence_entry(c, *off, n);
+                    let v = vsum[j as usize];
+                    s += dv[0] * v[0] + dv[1] * v[1] + dv[2] * v[2];
+                }
+                s / h
+            })
+            .collect();
+    }
+    // Restriction to coarser levels: b_{d-1, j} = sum_e w(e) b_{d, 2j + e}, the two-scale
+    // relation applied to the test functions (b is supported in S at every level).
+    for d in (0..depth as usize).rev() {
+        let (coarse, fine) = (&levels[d], &levels[d + 1]);
+        let table = fine.lookup_from(&coarse.active, Map::ToFine, &ring);
+        let bf = &rhs[d + 1];
+        let nf = fine.active_len();
+        rhs[d] = (0..coarse.active_len())
+            .into_par_iter()
+            .map(|j| {
+                let mut s = 0.0;
+                for (o, off) in ring.iter().enumerate() {
+                    let k = table[j * 27 + o];
+                    if k == MISSING || k as usize >= nf {
+                        continue;
+                    }
+                    let w = bspline::restriction_weight(off[0])
+                        * bspline::restriction_weight(off[1])
+                        * bspline::restriction_weight(off[2]);
+                    s += w * bf[k as usize];
+                }
+                s
+            })
+            .collect();
+    }
+
+    // Cascadic solve, coarse to fine.
+    progress.begin("poisson: solving", depth as u64 + 1);
+    let corners = octree::corners8();
+    let mut ys: Vec<Vec<f64>> = Vec::with_capacity(depth as usize + 1);
+    let mut level_stats = Vec::with_capacity(depth as usize + 1);
+    for d in 0..=depth {
+        let level = &levels[d as usize];
+        let h = 1.0 / (1u64 << d) as f64;
+        let alpha = cfg.point_weight * (1u64 << d) as f64;
+        // z = P y_{d-1} on all of the level's nodes.
+        let mut z = vec![0.0; level.len()];
+        if d > 0 {
+            let coarse = &levels[d as usize - 1];
+            let yc = &ys[d as usize - 1];
+            for (part, keys) in [(0usize, &level.active), (level.active_len(), &level.ghost)] {
+                let table = coarse.lookup_from(keys, Map::ToCoarse, &corners);
+                z[part..part + keys.len()]
+                    .par_iter_mut()
+                    .enumerate()
+                    .for_each(|(i, zi)| {
+                        let c = octree::unpack(keys.keys[i]);
+                        let mut s = 0.0;
+                        for (o, off) in corners.iter().enumerate() {
+                            let w = bspline::prolongation_weight(c[0], off[0])
+                                * bspline::prolongation_weight(c[1], off[1])
+                                * bspline::prolongation_weight(c[2], off[2]);
+                            if w == 0.0 {
+                                continue;
+                            }
+                            let j = table[i * 8 + o];
+                            debug_assert!(j != MISSING, "parent of a band vertex missing");
+                            if j != MISSING {
+                                s += w * yc[j as usize];
+                            }
+                        }
+                        *zi = s;
+                    });
+            }
+        }
+        let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
+        let ls = LevelSamples::new(level, &cells[d as usize], &sample_keys);
+        let mut stencil = [0.0; 27];
+        for (o, off) in ring.iter().enumerate() {
+            stencil[o] = h * bspline::laplacian_entry([1, 1, 1], *off, 1 << 20);
+        }
+        let sys = LevelSystem {
+            level,
+            ring: level.lookup_from(&level.active, Map::Same, &ring),
+            stencil,
+            h,
+            alpha,
+            samples: &samples,
+            area: &area,
+            ls,
+        };
+        // r = b - (h L + alpha S) z over the active vertices (ghost z included).
+        let mut r: Vec<f64> = (0..level.active_len())
+            .into_par_iter()
+            .map(|i| rhs[d as usize][i] - sys.laplacian_row(i, &z, true))
+            .collect();
+        if alpha > 0.0 {
+            let fz = sys.sample_values(&z);
+            for (s, f) in fz.iter().enumerate() {
+                let w = cell_weights(samples[s], d);
+                for (k, &c) in sys.ls.corners_of(s).iter().enumerate() {
+                    r[c as usize] -= alpha * area[s] * f * w[k];
+                }
+            }
+        }
+        let diag = sys.diagonal();
+        let mut x = vec![0.0; level.active_len()];
+        let iters = if level.full {
+            cfg.coarse_cg_iterations
+        } else {
+            cfg.cg_iterations
+        };
+        let report = solver::conjugate_gradient(
+            &|v: &[f64], out: &mut [f64]| sys.apply(v, out),
+            &diag,
+            &r,
+            &mut x,
+            iters,
+            cfg.cg_tolerance,
+        );
+        for (zi, xi) in z.iter_mut().zip(&x) {
+            *zi += xi;
+        }
+        level_stats.push(LevelStats {
+            depth: d,
+            active: level.active_len(),
+            ghost: level.ghost.len(),
+            cg: report,
+        });
+        ys.push(z);
+        progress.advance(1);
+    }
+    progress.end();
+    let y = &ys[depth as usize];
+
+    // Iso-value: area-weighted mean of chi at the samples.
+    let finest_samples = {
+        let keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, depth)).collect();
+        LevelSamples::new(finest, &cells[depth as usize], &keys)
+    };
+    let (num, den) = (0..samples.len())
+        .into_par_iter()
+        .map(|s| {
+            let w = cell_weights(samples[s], depth);
+            let v: f64 = finest_samples
+                .corners_of(s)
+                .iter()
+                .zip(w.iter())
+                .map(|(&c, w)| y[c as usize] * w)
+                .sum();
+            (area[s] * v, area[s])
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let iso = num / den;
+    let seconds_solve = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+
+    // Values at finest-lattice vertices outside the band: the finest level whose cell around
+    // the point has all 8 corners holds the whole function there (octree.rs).
+    let value_at = |v: [i64; 3]| -> f64 {
+        for d in (0..depth).rev() {
+            let level = &levels[d as usize];
+            let shift = depth - d;
+            let scale = (1i64 << shift) as f64;
+            let nd = level.n();
+            let mut cell = [0i64; 3];
+            let mut t = [0.0; 3];
+            for a in 0..3 {
+                cell[a] = (v[a] >> shift).min(nd - 1);
+                t[a] = v[a] as f64 / scale - cell[a] as f64;
+            }
+            let w = bspline::trilinear(t);
+            let mut s = 0.0;
+            let mut complete = true;
+            for (k, off) in corners.iter().enumerate() {
+                let key = octree::pack([
+                    cell[0] + off[0] as i64,
+                    cell[1] + off[1] as i64,
+                    cell[2] + off[2] as i64,
+                ]);
+                match level.find(key) {
+                    Some(i) => s += w[k] * ys[d as usize][i],
+                    None => {
+                        complete = false;
+                        break;
+                    }
+                }
+            }
+            if complete {
+                return s;
+            }
+        }
+        unreachable!("level 0 is full")
+    };
+    progress.begin("poisson: extracting", 0);
+    let iso_mesh = isosurface::extract(finest, y, iso, &value_at);
+    progress.end();
+    let hd = 1.0 / (1u64 << depth) as f64;
+    let positions: Vec<Point3<f64>> = iso_mesh
+        .positions
+        .iter()
+        .map(|p| origin + Vector3::new(p[0], p[1], p[2]) * (hd * size))
+        .collect();
+    let vertex_density: Vec<f32> = iso_mesh
+        .positions
+        .par_iter()
+        .map(|p| {
+            let u = [p[0] * hd, p[1] * hd, p[2] * hd];
+            let sigma = density.sigma(u);
+            if sigma > 0.0 {
+                (0.5 * (sigma / cfg.samples_per_node).log2()) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mesh = Mesh::from_triangles(positions, iso_mesh.faces);
+    let seconds_extract = t2.elapsed().as_secs_f64();
+    Ok(PoissonOutput {
+        mesh,
+        vertex_density,
+        stats: PoissonStats {
+            samples: samples.len(),
+            dropped,
+            levels: level_stats,
+            iso_value: iso,
+            flood_cells: iso_mesh.flood_cells,
+            seconds_octree,
+            seconds_solve,
+            seconds_extract,
+        },
+    })
+}

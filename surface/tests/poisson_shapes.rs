@@ -1,0 +1,217 @@
+//! Screened Poisson on point clouds sampled from the closed test shapes, checked against the
+//! ground-truth meshes: Chamfer distance, watertightness, manifoldness, genus.
+
+use fresco_core::knn::PointIndex3;
+use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::{Mesh, NoProgress, Topology};
+use fresco_datasets::shapes::Shape;
+use fresco_surface::{PoissonConfig, PoissonOutput, reconstruct};
+use rayon::prelude::*;
+
+/// Deterministic uniform numbers in [0, 1) (splitmix64).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `n` points uniformly on the surface (area-weighted faces), with the face normals.
+fn sample(mesh: &Mesh, n: usize, seed: u64) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {
+    let areas = mesh.face_areas();
+    let total: f64 = areas.iter().sum();
+    let mut cdf = Vec::with_capacity(areas.len());
+    let mut acc = 0.0;
+    for a in &areas {
+        acc += a / total;
+        cdf.push(acc);
+    }
+    let mut rng = Rng(seed);
+    let mut pts = Vec::with_capacity(n);
+    let mut nrm = Vec::with_capacity(n);
+    for _ in 0..n {
+        let r = rng.next();
+        let f = cdf.partition_point(|&c| c < r).min(areas.len() - 1);
+        let [a, b, c] = mesh.triangle(f);
+        let (mut u, mut v) = (rng.next(), rng.next());
+        if u + v > 1.0 {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        pts.push(a + (b - a) * u + (c - a) * v);
+        nrm.push(mesh.face_normal(f));
+    }
+    (pts, nrm)
+}
+
+/// Closest point on triangle `abc` to `p` (Ericson, Real-Time Collision Detection 5.1.5).
+fn closest_on_triangle(
+    p: Point3<f64>,
+    a: Point3<f64>,
+    b: Point3<f64>,
+    c: Point3<f64>,
+) -> Point3<f64> {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(&ap);
+    let d2 = ac.dot(&ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(&bp);
+    let d4 = ac.dot(&bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(&cp);
+    let d6 = ac.dot(&cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Mean distance from `queries` to the surface of `mesh`: exact point-triangle distances to
+/// the 16 faces with the nearest centroids (the meshes here have faces much smaller than the
+/// distances' scale of interest, so the true closest face is among them).
+fn mean_distance_to(queries: &[Point3<f64>], mesh: &Mesh) -> f64 {
+    let centroids: Vec<Point3<f64>> = (0..mesh.face_count())
+        .map(|f| {
+            let [a, b, c] = mesh.triangle(f);
+            Point3::from((a.coords + b.coords + c.coords) / 3.0)
+        })
+        .collect();
+    let index = PointIndex3::build(&centroids).unwrap();
+    let sum: f64 = queries
+        .par_iter()
+        .map(|q| {
+            index
+                .k_nearest(q, 16)
+                .iter()
+                .map(|nb| {
+                    let [a, b, c] = mesh.triangle(nb.index as usize);
+                    (closest_on_triangle(*q, a, b, c) - q).norm()
+                })
+                .fold(f64::INFINITY, f64::min)
+        })
+        .sum();
+    sum / queries.len() as f64
+}
+
+/// Symmetric Chamfer distance (mean of both one-sided means, 50k area samples a side) as a
+/// fraction of the ground truth's bounding-box diagonal.
+fn chamfer_fraction(recon: &Mesh, gt: &Mesh) -> f64 {
+    let (a, _) = sample(recon, 50_000, 11);
+    let (b, _) = sample(gt, 50_000, 12);
+    let d = 0.5 * (mean_distance_to(&a, gt) + mean_distance_to(&b, recon));
+    d / gt.bounding_box().unwrap().diagonal()
+}
+
+fn run(shape: Shape, n: usize, depth: u32) -> (Mesh, PoissonOutput) {
+    let gt = shape.mesh(4);
+    let (p, nrm) = sample(&gt, n, 7);
+    let cfg = PoissonConfig {
+        depth,
+        ..PoissonConfig::default()
+    };
+    let out = reconstruct(&p, &nrm, &cfg, &NoProgress).unwrap();
+    (gt, out)
+}
+
+/// Watertight (no boundary edge), manifold, consistently oriented, one component of the
+/// shape's genus, outward (positive signed volume).
+fn check_topology(shape: Shape, mesh: &Mesh) {
+    let topo = Topology::build(mesh).unwrap();
+    assert_eq!(
+        topo.boundary_edge_count(),
+        0,
+        "{}: not watertight",
+        shape.name()
+    );
+    assert!(
+        topo.non_manifold_edges().is_empty(),
+        "{}: non-manifold edges",
+        shape.name()
+    );
+    assert!(
+        topo.non_manifold_vertices().is_empty(),
+        "{}: non-manifold vertices",
+        shape.name()
+    );
+    let comps = topo.components();
+    assert_eq!(
+        comps.len(),
+        1,
+        "{}: {} components",
+        shape.name(),
+        comps.len()
+    );
+    assert!(comps[0].consistently_oriented);
+    assert_eq!(comps[0].genus, Some(shape.genus()), "{}", shape.name());
+    let volume: f64 = (0..mesh.face_count())
+        .map(|f| {
+            let [a, b, c] = mesh.triangle(f);
+            a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
+        })
+        .sum();
+    assert!(volume > 0.0, "{}: inward-facing surface", shape.name());
+}
+
+/// Depth 7, 50k samples (fast in the test profile). Bound: the brief's 0.1% of the diagonal
+/// is for depth 9; at depth 7 a cell is 2.2 / 128 = 0.017 units, 0.5% of the 3.46 diagonal,
+/// four times a depth-9 cell. Marching cubes on the trilinear field and the smoothing of the
+/// splatted normals misplace the surface by a fraction of a cell, so the error scales with the
+/// cell: 0.1% at depth 9 corresponds to 0.4% at depth 7. We hold 0.05% (a tenth of a cell),
+/// well above what was measured (about 0.01%: the sphere, torus and blob are smooth) but
+/// far below what a misplaced or shrunken surface gives.
+#[test]
+fn poisson_shapes_depth7_close_to_ground_truth() {
+    for shape in [Shape::Sphere, Shape::Torus, Shape::Blob] {
+        let (gt, out) = run(shape, 50_000, 7);
+        check_topology(shape, &out.mesh);
+        let cd = chamfer_fraction(&out.mesh, &gt);
+        eprintln!(
+            "{} depth 7: {} faces, Chamfer {:.5}% of diagonal, iso {:.4}, flood cells {}",
+            shape.name(),
+            out.mesh.face_count(),
+            cd * 100.0,
+            out.stats.iso_value,
+            out.stats.flood_cells,
+        );
+        assert!(cd <= 0.0005, "{}: Chamfer {cd}", shape.name());
+        assert_eq!(out.vertex_density.len(), out.mesh.vertex_count());
+    }
+}
+
+/// The brief's bound at depth 9 (200k samples); slow in the test profile, run by the bench.
+#[test]
+#[ignore]
+fn poisson_shapes_depth9_within_a_thousandth_of_the_diagonal() {
+    for shape in [Shape::Sphere, Shape::Torus, Shape::Blob] {
+        let (gt, out) = run(shape, 200_000, 9);
+        check_topology(shape, &out.mesh);
+        let cd = chamfer_fraction(&out.mesh, &gt);
+        eprintln!("{} depth 9: Chamfer {:.5}%", shape.name(), cd * 100.0);
+        assert!(cd <= 0.001, "{}: Chamfer {cd}", shape.name());
+    }
+}
