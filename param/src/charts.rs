@@ -4,14 +4,17 @@
 //!    Reeb graph ([`crate::reeb`]);
 //! 2. genus reduction ([`crate::genus`]): handles cut along short non-separating cycles,
 //!    rooted on the Reeb graph's loops, until the component has genus 0;
-//! 3. charts: faces joined across uncut edges;
-//! 4. every chart is checked as its own mesh (faces of the chart, vertices shared within it)
+//! 3. feature identification ([`crate::features`]): protrusions found from the Reeb graph's
+//!    tips are cut off along a separating cycle;
+//! 4. charts: faces joined across uncut edges;
+//! 5. every chart is checked as its own mesh (faces of the chart, vertices shared within it)
 //!    with `core::Topology`: one component, manifold, one boundary loop, Euler
 //!    characteristic 1. A chart that is not a disc is split in two at the area-weighted
 //!    median of a geodesic distance (from its farthest vertex when it is closed, from the
 //!    shortest path joining two of its boundary loops otherwise — that path crosses the
 //!    annulus, so the piece around it is a strip) and the pieces are checked again.
-//!    Single faces are discs, so this terminates.
+//!    Single faces are discs, so this terminates. Slivers left by the splits join a
+//!    neighbouring chart where the union is still a disc.
 
 use std::collections::{HashSet, VecDeque};
 
@@ -20,9 +23,15 @@ use fresco_core::{Mesh, Progress, Topology};
 
 use crate::ParamError;
 use crate::agd::average_geodesic_distance;
+use crate::features::{FeatureParams, find_features};
 use crate::genus::{edge_key, non_manifold, reduce_genus};
 use crate::geodesic::{Method, SurfaceGraph, path_to_source};
-use crate::reeb::ReebGraph;
+use crate::reeb::{ReebGraph, local_maxima};
+
+/// A tip is an AGD maximum over this many edge rings (suppresses noise on flat regions).
+const TIP_RINGS: usize = 3;
+/// At most this many tips are examined per component (each costs one distance field).
+const MAX_TIPS: usize = 48;
 
 /// Parameters of the segmentation.
 #[derive(Clone, Debug)]
@@ -31,8 +40,23 @@ pub struct ChartConfig {
     pub agd_bases: usize,
     /// Intervals of the AGD range in the Reeb graph.
     pub reeb_levels: u32,
-    /// Geodesic distance method for the AGD and the splits.
+    /// Geodesic distance method for the AGD, the features and the splits.
     pub geodesic: Method,
+    /// Cut protrusions off as their own charts ([`crate::features`]).
+    pub features: bool,
+    /// Extent of the region growing from a tip, in units of the shape's AGD radius. The
+    /// paper shows 1, 2 and 5 (figure 5); larger values give fewer charts.
+    pub isovalue: f64,
+    /// `k`: equal intervals of the normalised tip distance (the samples of `A(x)`).
+    pub bands: usize,
+    /// `N`: passes of the Gaussian filter over `A(x)`. The paper shows 10, 30 and 50
+    /// (figure 7) and prefers 30 over 10 (figure 8).
+    pub gaussian_steps: usize,
+    /// Minimum log–log slope of the smoothed `A(x)` where a feature joins the body (1 is
+    /// a cone: no separation).
+    pub sharpness: f64,
+    /// Features smaller than this fraction of their component's area are not cut.
+    pub min_feature_area: f64,
 }
 
 impl Default for ChartConfig {
@@ -41,6 +65,12 @@ impl Default for ChartConfig {
             agd_bases: 32,
             reeb_levels: 24,
             geodesic: Method::FastMarching,
+            features: true,
+            isovalue: 2.0,
+            bands: 40,
+            gaussian_steps: 30,
+            sharpness: 1.25,
+            min_feature_area: 0.005,
         }
     }
 }
@@ -108,10 +138,16 @@ pub fn segment(
     if mesh.faces.is_empty() {
         return Err(ParamError::EmptyMesh);
     }
-    if cfg.agd_bases == 0 || cfg.reeb_levels == 0 {
+    if cfg.agd_bases == 0 || cfg.reeb_levels == 0 || cfg.bands < 4 {
         return Err(ParamError::Config(
-            "agd_bases and reeb_levels must be at least 1".into(),
+            "agd_bases and reeb_levels must be at least 1, bands at least 4".into(),
         ));
+    }
+    if !(cfg.isovalue > 0.0 && cfg.isovalue.is_finite()) {
+        return Err(ParamError::Config(format!(
+            "isovalue must be positive, got {}",
+            cfg.isovalue
+        )));
     }
     if let Some(v) = mesh
         .positions
@@ -198,8 +234,54 @@ fn segment_part(part: &Part, cfg: &ChartConfig) -> Result<(Vec<Vec<u32>>, u32, u
         cut = genus.handles_cut,
         "genus reduction"
     );
-    let initial = components_across(&part.faces, &part.positions, &genus.cut_edges)?;
+    let mut cuts = genus.cut_edges.clone();
+    if cfg.features {
+        // Tips: the AGD maxima (leaves of the Reeb graph) by decreasing AGD, the most
+        // prominent protrusions first; the banded graph's leaves are among them.
+        let mut tips = local_maxima(&graph, &agd.raw, TIP_RINGS);
+        for n in reeb.tips() {
+            let v = reeb.graph[n].max_vertex;
+            if !tips.contains(&v) {
+                tips.push(v);
+            }
+        }
+        tips.sort_by(|&a, &b| agd.raw[b as usize].total_cmp(&agd.raw[a as usize]));
+        tips.truncate(MAX_TIPS);
+        let radius = agd.raw.iter().copied().fold(f64::INFINITY, f64::min);
+        let params = FeatureParams {
+            isovalue: cfg.isovalue,
+            bands: cfg.bands,
+            gaussian_steps: cfg.gaussian_steps,
+            sharpness: cfg.sharpness,
+            min_area_fraction: cfg.min_feature_area,
+            method: cfg.geodesic,
+        };
+        let features = find_features(
+            &part.positions,
+            &part.faces,
+            &tips,
+            &genus.cut_edges,
+            radius,
+            &params,
+        );
+        tracing::debug!(tips = tips.len(), features = features.len(), "features");
+        let mut label = vec![u32::MAX; part.faces.len()];
+        for (i, feat) in features.iter().enumerate() {
+            for &f in &feat.faces {
+                label[f as usize] = i as u32;
+            }
+        }
+        let topo = Topology::from_faces(&part.faces, part.positions.len())?;
+        for (h, &o) in topo.opposites().iter().enumerate() {
+            if o != fresco_core::topology::NONE && label[h / 3] != label[o as usize / 3] {
+                let f = part.faces[h / 3];
+                cuts.insert(edge_key(f[h % 3], f[(h % 3 + 1) % 3]));
+            }
+        }
+    }
+    let initial = components_across(&part.faces, &part.positions, &cuts)?;
     let charts = make_discs(&part.positions, &part.faces, initial, cfg.geodesic)?;
+    let charts = merge_small(&part.positions, &part.faces, charts)?;
     Ok((charts, genus.genus_before, genus.handles_cut))
 }
 
@@ -291,6 +373,73 @@ fn make_discs(
         }
     }
     Ok(done)
+}
+
+/// Charts smaller than this fraction of their component's area try to join a neighbour.
+const SMALL_CHART_FRACTION: f64 = 0.01;
+
+/// Median splits can leave slivers (a few faces cut off between two boundary loops): each
+/// chart smaller than [`SMALL_CHART_FRACTION`] of the component joins the neighbouring
+/// chart it shares most edges with, among those where the union is still a disc.
+fn merge_small(
+    positions: &[Point3<f64>],
+    faces: &[[u32; 3]],
+    charts: Vec<Vec<u32>>,
+) -> Result<Vec<Vec<u32>>, ParamError> {
+    let topo = Topology::from_faces(faces, positions.len())?;
+    let area = |f: u32| {
+        let [a, b, c] = faces[f as usize].map(|v| positions[v as usize]);
+        0.5 * (b - a).cross(&(c - a)).norm()
+    };
+    let total: f64 = (0..faces.len() as u32).map(area).sum();
+    let mut label = vec![0u32; faces.len()];
+    for (i, c) in charts.iter().enumerate() {
+        for &f in c {
+            label[f as usize] = i as u32;
+        }
+    }
+    let mut charts: Vec<Option<Vec<u32>>> = charts.into_iter().map(Some).collect();
+    let mut order: Vec<usize> = (0..charts.len()).collect();
+    let chart_area = |c: &[u32]| c.iter().map(|&f| area(f)).sum::<f64>();
+    order.sort_by(|&a, &b| {
+        let (x, y) = (charts[a].as_ref().unwrap(), charts[b].as_ref().unwrap());
+        chart_area(x).total_cmp(&chart_area(y))
+    });
+    for i in order {
+        let Some(small) = charts[i].clone() else {
+            continue;
+        };
+        if chart_area(&small) >= SMALL_CHART_FRACTION * total {
+            continue;
+        }
+        let mut shared: std::collections::HashMap<u32, usize> = Default::default();
+        for &f in &small {
+            for h in 3 * f..3 * f + 3 {
+                if let Some(o) = topo.opposite(h) {
+                    let l = label[(o / 3) as usize];
+                    if l as usize != i {
+                        *shared.entry(l).or_default() += 1;
+                    }
+                }
+            }
+        }
+        let mut cands: Vec<(usize, u32)> = shared.into_iter().map(|(l, k)| (k, l)).collect();
+        cands.sort_by(|a, b| b.cmp(a));
+        for (_, l) in cands {
+            let mut union = charts[l as usize].clone().unwrap_or_default();
+            union.extend(&small);
+            let (sub, global) = sub_mesh(faces, &union);
+            if is_disc(&sub, global.len()) {
+                for &f in &small {
+                    label[f as usize] = l;
+                }
+                charts[l as usize] = Some(union);
+                charts[i] = None;
+                break;
+            }
+        }
+    }
+    Ok(charts.into_iter().flatten().collect())
 }
 
 /// Which side of a split each face of a non-disc chart goes to (see the module docs).

@@ -6,6 +6,7 @@
 //! - [`agd`]: average geodesic distance from farthest-point base vertices.
 //! - [`reeb`]: the surface Reeb graph of the AGD (tips, saddles, loops).
 //! - [`genus`]: cutting handles along non-separating cycles until genus 0.
+//! - [`features`]: protrusions separated where the area of distance bands from a tip jumps.
 //! - [`charts`]: the pipeline, [`charts::segment`] -> [`charts::Charts`] (every chart a disc).
 //!
 //! Errors: [`ParamError`].
@@ -13,6 +14,7 @@
 pub mod agd;
 pub mod charts;
 pub mod error;
+pub mod features;
 pub mod genus;
 pub mod geodesic;
 pub mod reeb;

@@ -21,11 +21,11 @@ use petgraph::visit::EdgeRef;
 
 use crate::ParamError;
 
-/// Bands are at least this many mean per-edge function steps wide.
-const MIN_EDGES_PER_BAND: f64 = 3.0;
+/// Bands are at least this many (steep) per-edge function steps wide.
+const MIN_EDGES_PER_BAND: f64 = 2.0;
 /// Pieces smaller than this fraction of an average band's area are merged into a neighbour.
 const SMALL_NODE_FRACTION: f64 = 0.2;
-const SMALL_NODE_ROUNDS: usize = 4;
+const SMALL_NODE_ROUNDS: usize = 16;
 
 /// Connected pieces of equal band across manifold edges.
 fn flood(
@@ -78,11 +78,12 @@ fn flood(
     (face_node, nodes)
 }
 
-/// Interface pieces shorter than this many edges do not count as a separate contact curve.
-const MIN_CURVE_EDGES: usize = 3;
+/// Interface pieces with fewer faces than this do not count as a separate contact curve.
+const MIN_CURVE_EDGES: usize = 6;
 
-/// Number of connected pieces (through shared vertices) of a set of edges, at least 1.
-fn curve_count(edges: &[[u32; 2]]) -> usize {
+/// Number of connected pieces (through shared vertices) of the faces along an interface,
+/// at least 1.
+fn curve_count(edges: &[[u32; 3]]) -> usize {
     let mut id: std::collections::HashMap<u32, usize> = Default::default();
     let mut parent: Vec<usize> = Vec::new();
     fn find(p: &mut [usize], mut x: usize) -> usize {
@@ -93,14 +94,16 @@ fn curve_count(edges: &[[u32; 2]]) -> usize {
         x
     }
     for e in edges {
-        let [a, b] = e.map(|v| {
+        let [a, b, c] = e.map(|v| {
             *id.entry(v).or_insert_with(|| {
                 parent.push(parent.len());
                 parent.len() - 1
             })
         });
-        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-        parent[ra.max(rb)] = ra.min(rb);
+        for (x, y) in [(a, b), (a, c)] {
+            let (rx, ry) = (find(&mut parent, x), find(&mut parent, y));
+            parent[rx.max(ry)] = rx.min(ry);
+        }
     }
     // Pieces of a couple of edges are where jagged level sets touch at a corner, not a
     // second curve of contact.
@@ -168,14 +171,19 @@ impl ReebGraph {
         // discrete level sets, which shows up as spurious leaves and loops: cap the number
         // of intervals so that a band is at least `MIN_EDGES_PER_BAND` mean edge steps of
         // the function wide.
-        let (mut sum, mut n) = (0.0, 0usize);
-        for f in faces {
-            for c in 0..3 {
-                sum += (value[f[c] as usize] - value[f[(c + 1) % 3] as usize]).abs();
-                n += 1;
-            }
-        }
-        let step = sum / n.max(1) as f64;
+        // Steep regions (thin protrusions) set the limit: the 90th percentile of the
+        // per-edge change, not the mean, which the flat body dominates.
+        let mut steps: Vec<f64> = faces
+            .iter()
+            .flat_map(|f| (0..3).map(move |c| (f[c], f[(c + 1) % 3])))
+            .map(|(a, b)| (value[a as usize] - value[b as usize]).abs())
+            .collect();
+        let step = if steps.is_empty() {
+            0.0
+        } else {
+            let q = (steps.len() * 9 / 10).min(steps.len() - 1);
+            *steps.select_nth_unstable_by(q, f64::total_cmp).1
+        };
         let fit = if step > 0.0 {
             (span / (MIN_EDGES_PER_BAND * step)).floor().max(1.0) as u32
         } else {
@@ -246,7 +254,7 @@ impl ReebGraph {
         // One graph edge per connected piece of the interface between two nodes: on a
         // handle two arms meet the same node along two separate curves, and that double
         // contact is the loop.
-        let mut interface: std::collections::BTreeMap<(u32, u32), Vec<[u32; 2]>> =
+        let mut interface: std::collections::BTreeMap<(u32, u32), Vec<[u32; 3]>> =
             Default::default();
         for (h, &o) in topo.opposites().iter().enumerate() {
             if o == fresco_core::topology::NONE {
@@ -254,11 +262,11 @@ impl ReebGraph {
             }
             let (a, b) = (face_node[h / 3], face_node[o as usize / 3]);
             if a < b {
-                let f = faces[h / 3];
-                interface
-                    .entry((a, b))
-                    .or_default()
-                    .push([f[h % 3], f[(h % 3 + 1) % 3]]);
+                // Both faces beside the interface edge: pieces of a jagged level set that
+                // are one face apart still count as one curve.
+                let entry = interface.entry((a, b)).or_default();
+                entry.push(faces[h / 3]);
+                entry.push(faces[o as usize / 3]);
             }
         }
         for ((a, b), edges) in interface {
@@ -333,7 +341,10 @@ impl ReebGraph {
     pub fn critical(&self, n: NodeIndex) -> Critical {
         let band = self.graph[n].band;
         let (mut up, mut down) = (0, 0);
-        for m in self.graph.neighbors(n) {
+        let mut distinct: Vec<NodeIndex> = self.graph.neighbors(n).collect();
+        distinct.sort_unstable();
+        distinct.dedup();
+        for m in distinct {
             if self.graph[m].band > band {
                 up += 1;
             } else {
@@ -352,8 +363,62 @@ impl ReebGraph {
     pub fn tips(&self) -> Vec<NodeIndex> {
         self.graph
             .node_indices()
-            .filter(|&n| self.graph.neighbors(n).count() <= 1)
+            .filter(|&n| {
+                let mut m: Vec<NodeIndex> = self.graph.neighbors(n).collect();
+                m.sort_unstable();
+                m.dedup();
+                m.len() <= 1
+            })
             .filter(|&n| self.critical(n) == Critical::Maximum)
             .collect()
     }
+}
+
+/// Vertices where `value` is the largest within `rings` edge rings (ties go to the lower
+/// index), highest first: the maxima of the function, i.e. the leaves of its exact Reeb
+/// graph at the top of protrusions. Unlike the banded graph's leaves these do not depend on
+/// the interval width, so thin protrusions whose bands fragment are still found.
+pub fn local_maxima(
+    graph: &crate::geodesic::SurfaceGraph,
+    value: &[f64],
+    rings: usize,
+) -> Vec<u32> {
+    let n = graph.vertex_count();
+    let beats = |a: u32, b: u32| {
+        value[a as usize] > value[b as usize] || (value[a as usize] == value[b as usize] && a < b)
+    };
+    let mut stamp = vec![u32::MAX; n];
+    let mut out: Vec<u32> = Vec::new();
+    let mut frontier = Vec::new();
+    let mut next = Vec::new();
+    for v in 0..n as u32 {
+        if !value[v as usize].is_finite() || graph.vertex_faces(v).is_empty() {
+            continue;
+        }
+        stamp[v as usize] = v;
+        frontier.clear();
+        frontier.push(v);
+        let mut is_max = true;
+        'rings: for _ in 0..rings {
+            next.clear();
+            for &u in &frontier {
+                for (w, _) in graph.neighbours(u) {
+                    if stamp[w as usize] != v {
+                        stamp[w as usize] = v;
+                        if beats(w, v) {
+                            is_max = false;
+                            break 'rings;
+                        }
+                        next.push(w);
+                    }
+                }
+            }
+            std::mem::swap(&mut frontier, &mut next);
+        }
+        if is_max {
+            out.push(v);
+        }
+    }
+    out.sort_by(|&a, &b| value[b as usize].total_cmp(&value[a as usize]));
+    out
 }
