@@ -1,5 +1,6 @@
 //! What can go wrong while charting and unwrapping a mesh.
 
+use fresco_core::MeshError;
 use fresco_core::topology::TopologyError;
 
 /// Errors of fresco-param. Each names the mesh elements at fault so that a user can find
@@ -33,4 +34,18 @@ pub enum ParamError {
     /// A configuration value is outside its meaningful range.
     #[error("invalid chart configuration: {0}")]
     Config(String),
+    /// An attribute or index of the mesh is invalid (unwrapping).
+    #[error("invalid mesh: {0}")]
+    Mesh(#[from] MeshError),
+    /// `face_chart` given to `unwrap_charts` does not have one label per face.
+    #[error("face_chart has {len} entries but the mesh has {faces} faces")]
+    ChartLength { len: usize, faces: usize },
+    /// A sparse factorisation of a chart's system failed (the chart is then split).
+    #[error("sparse solve of a chart with {vertices} vertices failed: {reason}")]
+    Solve { vertices: usize, reason: String },
+    /// A chart is larger than the atlas at the requested texel density.
+    #[error(
+        "chart of {width}x{height} texels (with gutter) does not fit an atlas of {atlas} texels: lower the texels per unit"
+    )]
+    ChartTooLarge { width: u32, height: u32, atlas: u32 },
 }

@@ -1,0 +1,698 @@
+//! Packing flattened charts into square atlas images.
+//!
+//! 1. Every chart is scaled to one texel density (`texels_per_unit`, texels per world unit:
+//!    the charts come in with UV area equal to their 3D area) and rotated so that its
+//!    bounding box has the least area (rotating calipers over the convex hull: the optimal
+//!    box has a side on a hull edge, Freeman & Shapira 1975). Its v axis is flipped so that
+//!    the texture is not mirrored in fresco's v-down convention.
+//! 2. Charts are rasterised conservatively (every texel a triangle touches) and placed,
+//!    largest first, at the first free position (lowest row, then lowest column) of a bitmap
+//!    of the atlas, trying both 0 and 90 degrees. The test uses the chart's rows dilated by
+//!    `gutter` texels (each row as one span) against the exact texels of the charts already
+//!    placed, so charts are at least `gutter` texels apart and small charts can still nest in
+//!    the concavities of large ones. A conflict in a row skips the position past the occupied
+//!    texel that caused it, so the search runs over obstacles rather than over every texel.
+//! 3. Without a given density, the density that fills one atlas is found by packing into a
+//!    strip of the atlas' width and rescaling by the square root of width / used height
+//!    (a few rounds; the gutter does not scale, hence the iteration).
+
+use fresco_core::nalgebra::{Matrix2, Point2, Vector2};
+use rayon::prelude::*;
+
+use crate::ParamError;
+
+/// Packing settings.
+#[derive(Clone, Debug)]
+pub struct PackConfig {
+    /// Width and height of each atlas image, texels.
+    pub atlas_size: u32,
+    /// Minimum distance between charts and from the atlas border, texels.
+    pub gutter: u32,
+    /// Texels per world unit; `None` chooses the largest that fits one atlas.
+    pub texels_per_unit: Option<f64>,
+}
+
+/// Where one chart went: `texel = linear · uv + offset` in atlas `atlas` (x right, y down).
+#[derive(Clone, Debug)]
+pub struct Placement {
+    pub atlas: u32,
+    pub linear: Matrix2<f64>,
+    pub offset: Vector2<f64>,
+}
+
+impl Placement {
+    /// Atlas texture coordinates (fresco's v-down, in [0, 1]) of chart point `uv`.
+    pub fn apply(&self, uv: Point2<f64>, atlas_size: u32) -> Point2<f64> {
+        Point2::from((self.linear * uv.coords + self.offset) / atlas_size as f64)
+    }
+}
+
+/// Result of [`pack`].
+#[derive(Clone, Debug)]
+pub struct Packing {
+    pub placements: Vec<Placement>,
+    pub atlases: u32,
+    pub texels_per_unit: f64,
+}
+
+/// A chart to pack: its flattened vertices (world units, counter-clockwise) and triangles.
+pub struct ChartShape<'a> {
+    pub uv: &'a [Point2<f64>],
+    pub faces: &'a [[u32; 3]],
+    /// 3D area (world units²), used to choose the density.
+    pub area: f64,
+}
+
+/// Packs `charts`; see the module documentation.
+pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamError> {
+    if cfg.atlas_size < 8 || cfg.atlas_size > 65536 {
+        return Err(ParamError::Config(format!(
+            "atlas size {} is outside 8..=65536",
+            cfg.atlas_size
+        )));
+    }
+    if 2 * cfg.gutter + 1 >= cfg.atlas_size {
+        return Err(ParamError::Config(format!(
+            "gutter {} leaves no room in an atlas of {}",
+            cfg.gutter, cfg.atlas_size
+        )));
+    }
+    if charts.is_empty() {
+        return Ok(Packing {
+            placements: Vec::new(),
+            atlases: 0,
+            texels_per_unit: cfg.texels_per_unit.unwrap_or(1.0),
+        });
+    }
+    // Rotation to the minimum-area box, and the v flip, per chart.
+    let base: Vec<Matrix2<f64>> = charts.par_iter().map(|c| min_area_rotation(c.uv)).collect();
+    let w = cfg.atlas_size;
+    if let Some(tpu) = cfg.texels_per_unit {
+        if !(tpu > 0.0 && tpu.is_finite()) {
+            return Err(ParamError::Config(format!(
+                "texels per unit {tpu} must be positive"
+            )));
+        }
+        let rasters = rasterise_all(charts, &base, tpu, cfg.gutter);
+        let (placements, atlases, _) = place(&rasters, w, w, false)?;
+        return Ok(finish(placements, atlases, tpu, &base, &rasters));
+    }
+    let total: f64 = charts.iter().map(|c| c.area).sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Err(ParamError::Config("the charts have no area to pack".into()));
+    }
+    // Start from 70% fill ignoring gutters; then rescale by sqrt(width / used height).
+    let mut tpu = (0.7 * (w as f64).powi(2) / total).sqrt();
+    let mut best: Option<(f64, Vec<Raster>, Vec<Spot>)> = None;
+    let mut lowest_failure = f64::INFINITY;
+    for _round in 0..8 {
+        let rasters = rasterise_all(charts, &base, tpu, cfg.gutter);
+        let strip = 16 * w;
+        match place(&rasters, w, strip, true) {
+            Ok((placements, _, used)) => {
+                let fits = used <= w;
+                let scale = (w as f64 / used.max(1) as f64).sqrt();
+                if fits {
+                    if best.as_ref().is_none_or(|b| b.0 < tpu) {
+                        best = Some((tpu, rasters, placements));
+                    }
+                    if scale < 1.01 {
+                        break;
+                    }
+                    // Grow, but not past a density that already failed.
+                    tpu = (tpu * scale).min(0.5 * (tpu + lowest_failure));
+                } else {
+                    lowest_failure = lowest_failure.min(tpu);
+                    tpu *= scale * 0.995;
+                }
+            }
+            Err(_) => {
+                lowest_failure = lowest_failure.min(tpu);
+                tpu *= 0.5;
+            }
+        }
+    }
+    let (tpu, rasters, placements) = match best {
+        Some(b) => b,
+        None => {
+            // Shrink until it fits: a strip never fit inside the atlas in 8 rounds.
+            let mut t = tpu;
+            loop {
+                let rasters = rasterise_all(charts, &base, t, cfg.gutter);
+                if let Ok((p, _, used)) = place(&rasters, w, 16 * w, true)
+                    && used <= w
+                {
+                    break (t, rasters, p);
+                }
+                t *= 0.8;
+                if t < 1e-12 {
+                    return Err(ParamError::Config("charts cannot be packed".into()));
+                }
+            }
+        }
+    };
+    Ok(finish(placements, 1, tpu, &base, &rasters))
+}
+
+fn finish(
+    placements: Vec<(u32, u32, u32, bool)>,
+    atlases: u32,
+    tpu: f64,
+    base: &[Matrix2<f64>],
+    rasters: &[Raster],
+) -> Packing {
+    let placements = placements
+        .into_iter()
+        .enumerate()
+        .map(|(i, (atlas, x, y, turned))| {
+            let r = &rasters[i];
+            let m = base[i] * tpu;
+            // Texel position inside the chart's own (undilated) frame: m·uv − origin.
+            let g = r.gutter as f64;
+            let (linear, offset) = if turned {
+                // 90 degrees: (x, y) -> (h − y, x) in the chart frame (orientation kept).
+                let rot = Matrix2::new(0.0, -1.0, 1.0, 0.0);
+                let lin = rot * m;
+                let off = rot * (-r.origin) + Vector2::new(r.height as f64, 0.0);
+                (lin, off + Vector2::new(x as f64 + g, y as f64 + g))
+            } else {
+                (m, -r.origin + Vector2::new(x as f64 + g, y as f64 + g))
+            };
+            Placement {
+                atlas,
+                linear,
+                offset,
+            }
+        })
+        .collect();
+    Packing {
+        placements,
+        atlases,
+        texels_per_unit: tpu,
+    }
+}
+
+/// Rotation (with the v flip) that puts the chart's minimum-area bounding box on the axes.
+fn min_area_rotation(uv: &[Point2<f64>]) -> Matrix2<f64> {
+    let hull = convex_hull(uv);
+    let flip = Matrix2::new(1.0, 0.0, 0.0, -1.0);
+    if hull.len() < 3 {
+        return flip;
+    }
+    let mut best = (f64::INFINITY, Matrix2::identity());
+    for k in 0..hull.len() {
+        let e = hull[(k + 1) % hull.len()] - hull[k];
+        let len = e.norm();
+        if len == 0.0 {
+            continue;
+        }
+        let (c, s) = (e.x / len, e.y / len);
+        // Rotate the edge onto the x axis.
+        let r = Matrix2::new(c, s, -s, c);
+        let (mut lo, mut hi) = (
+            Vector2::repeat(f64::INFINITY),
+            Vector2::repeat(f64::NEG_INFINITY),
+        );
+        for p in &hull {
+            let q = r * p.coords;
+            lo = lo.inf(&q);
+            hi = hi.sup(&q);
+        }
+        let d = hi - lo;
+        // Prefer landscape boxes (wider than tall) so the strip fills row by row.
+        let area = d.x * d.y;
+        if area < best.0 * (1.0 - 1e-9) {
+            let r = if d.y > d.x {
+                Matrix2::new(0.0, 1.0, -1.0, 0.0) * r
+            } else {
+                r
+            };
+            best = (area, r);
+        }
+    }
+    flip * best.1
+}
+
+/// Andrew's monotone chain; counter-clockwise, no repeated points.
+fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
+    let mut p: Vec<Point2<f64>> = points.to_vec();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: Point2<f64>, a: Point2<f64>, b: Point2<f64>| (a - o).perp(&(b - o));
+    let mut hull: Vec<Point2<f64>> = Vec::with_capacity(2 * p.len());
+    for &q in p.iter().chain(p.iter().rev().skip(1)) {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(q);
+    }
+    hull.pop();
+    hull
+}
+
+/// Where a chart went: (atlas, x, y, turned by 90 degrees).
+type Spot = (u32, u32, u32, bool);
+
+/// A chart rasterised at one density.
+struct Raster {
+    /// Undilated size in texels.
+    width: u32,
+    height: u32,
+    gutter: u32,
+    /// Texel-space position of the undilated frame's origin (bbox min, floored).
+    origin: Vector2<f64>,
+    /// Undilated occupancy: for each row, runs of covered texels [lo, hi].
+    runs: Vec<Vec<(u32, u32)>>,
+    /// Dilated rows (size height + 2 gutter): span [lo, hi] in the dilated frame, or None.
+    spans: Vec<Option<(u32, u32)>>,
+    area: u64,
+}
+
+fn rasterise_all(
+    charts: &[ChartShape],
+    base: &[Matrix2<f64>],
+    tpu: f64,
+    gutter: u32,
+) -> Vec<Raster> {
+    charts
+        .par_iter()
+        .zip(base.par_iter())
+        .map(|(c, m)| rasterise(c, &(m * tpu), gutter))
+        .collect()
+}
+
+fn rasterise(chart: &ChartShape, m: &Matrix2<f64>, gutter: u32) -> Raster {
+    let pts: Vec<Vector2<f64>> = chart.uv.iter().map(|p| m * p.coords).collect();
+    let mut lo = Vector2::repeat(f64::INFINITY);
+    let mut hi = Vector2::repeat(f64::NEG_INFINITY);
+    for p in &pts {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let origin = lo.map(f64::floor);
+    let width = ((hi.x - origin.x).floor() as u32 + 1).max(1);
+    let height = ((hi.y - origin.y).floor() as u32 + 1).max(1);
+    // Per row, covered x-extent of each triangle clipped to the row's slab.
+    let mut row_bits: Vec<Vec<u64>> =
+        vec![vec![0u64; (width as usize).div_ceil(64)]; height as usize];
+    for f in chart.faces {
+        let t = f.map(|v| pts[v as usize] - origin);
+        let ymin = t.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+        let ymax = t.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max);
+        let r0 = (ymin.floor().max(0.0) as u32).min(height - 1);
+        let r1 = (ymax.floor().max(0.0) as u32).min(height - 1);
+        for r in r0..=r1 {
+            let (y0, y1) = (r as f64, r as f64 + 1.0);
+            let (mut xa, mut xb) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..3 {
+                let (p, q) = (t[k], t[(k + 1) % 3]);
+                if p.y >= y0 && p.y <= y1 {
+                    xa = xa.min(p.x);
+                    xb = xb.max(p.x);
+                }
+                for yy in [y0, y1] {
+                    if (p.y - yy) * (q.y - yy) < 0.0 {
+                        let s = (yy - p.y) / (q.y - p.y);
+                        let x = p.x + s * (q.x - p.x);
+                        xa = xa.min(x);
+                        xb = xb.max(x);
+                    }
+                }
+            }
+            if xa > xb {
+                continue;
+            }
+            let c0 = (xa.floor().max(0.0) as u32).min(width - 1);
+            let c1 = (xb.floor().max(0.0) as u32).min(width - 1);
+            let row = &mut row_bits[r as usize];
+            for c in c0..=c1 {
+                row[(c / 64) as usize] |= 1u64 << (c % 64);
+            }
+        }
+    }
+    let mut runs = Vec::with_capacity(height as usize);
+    let mut area = 0u64;
+    let mut row_span: Vec<Option<(u32, u32)>> = Vec::with_capacity(height as usize);
+    for row in &row_bits {
+        let mut list = Vec::new();
+        let mut c = 0u32;
+        while c < width {
+            if row[(c / 64) as usize] >> (c % 64) & 1 == 1 {
+                let start = c;
+                while c < width && row[(c / 64) as usize] >> (c % 64) & 1 == 1 {
+                    c += 1;
+                }
+                list.push((start, c - 1));
+                area += (c - start) as u64;
+            } else {
+                c += 1;
+            }
+        }
+        row_span.push(match (list.first(), list.last()) {
+            (Some(a), Some(b)) => Some((a.0, b.1)),
+            _ => None,
+        });
+        runs.push(list);
+    }
+    // Dilation by `gutter` (square neighbourhood), each dilated row as one span.
+    let g = gutter as i64;
+    let dh = height as i64 + 2 * g;
+    let spans = (0..dh)
+        .map(|r| {
+            let (mut a, mut b) = (u32::MAX, 0u32);
+            for src in (r - 2 * g).max(0)..=r.min(height as i64 - 1) {
+                if let Some((lo, hi)) = row_span[src as usize] {
+                    a = a.min(lo);
+                    b = b.max(hi + 2 * gutter);
+                }
+            }
+            (a != u32::MAX).then_some((a, b))
+        })
+        .collect();
+    Raster {
+        width,
+        height,
+        gutter,
+        origin,
+        runs,
+        spans,
+        area,
+    }
+}
+
+/// Occupancy bitmap of one atlas.
+struct Bitmap {
+    width: u32,
+    words: usize,
+    bits: Vec<u64>,
+    /// Free texels per row, for a quick reject.
+    free: Vec<u32>,
+    /// Lowest row that can still hold anything (rows above it are full).
+    used_height: u32,
+}
+
+impl Bitmap {
+    fn new(width: u32, height: u32) -> Bitmap {
+        let words = (width as usize).div_ceil(64);
+        Bitmap {
+            width,
+            words,
+            bits: vec![0; words * height as usize],
+            free: vec![width; height as usize],
+            used_height: 0,
+        }
+    }
+
+    fn height(&self) -> u32 {
+        self.free.len() as u32
+    }
+
+    /// Highest occupied column in `[a, b]` of row `y`.
+    fn last_set(&self, y: u32, a: u32, b: u32) -> Option<u32> {
+        let row = &self.bits[y as usize * self.words..(y as usize + 1) * self.words];
+        let (wa, wb) = ((a / 64) as usize, (b / 64) as usize);
+        for w in (wa..=wb).rev() {
+            let mut word = row[w];
+            if w == wb && b % 64 != 63 {
+                word &= (1u64 << (b % 64 + 1)) - 1;
+            }
+            if w == wa {
+                word &= !0u64 << (a % 64);
+            }
+            if word != 0 {
+                return Some(w as u32 * 64 + 63 - word.leading_zeros());
+            }
+        }
+        None
+    }
+
+    fn set_run(&mut self, y: u32, a: u32, b: u32) {
+        let base = y as usize * self.words;
+        for c in a..=b {
+            self.bits[base + (c / 64) as usize] |= 1u64 << (c % 64);
+        }
+        self.free[y as usize] -= b - a + 1;
+    }
+
+    /// First position (lowest row, then column) where the dilated spans fit.
+    fn find(&self, spans: &[Option<(u32, u32)>], dw: u32) -> Option<(u32, u32)> {
+        let dh = spans.len() as u32;
+        if dw > self.width || dh > self.height() {
+            return None;
+        }
+        'rows: for y in 0..=self.height() - dh {
+            // Quick reject: a row with fewer free texels than the span needs.
+            for (r, s) in spans.iter().enumerate() {
+                if let Some((lo, hi)) = s
+                    && self.free[y as usize + r] < hi - lo + 1
+                {
+                    continue 'rows;
+                }
+            }
+            let mut x = 0u32;
+            'cols: while x + dw <= self.width {
+                for (r, s) in spans.iter().enumerate() {
+                    let Some((lo, hi)) = *s else { continue };
+                    if let Some(p) = self.last_set(y + r as u32, x + lo, x + hi) {
+                        x = p + 1 - lo;
+                        continue 'cols;
+                    }
+                }
+                return Some((x, y));
+            }
+        }
+        None
+    }
+
+    fn insert(&mut self, r: &Raster, x: u32, y: u32, turned: bool) {
+        let g = r.gutter;
+        if turned {
+            // Turned chart: texel (c, row) of the chart goes to (height − 1 − row, c).
+            for (row, list) in r.runs.iter().enumerate() {
+                let tx = x + g + r.height - 1 - row as u32;
+                for &(a, b) in list {
+                    for c in a..=b {
+                        let ty = y + g + c;
+                        self.bits[ty as usize * self.words + (tx / 64) as usize] |=
+                            1u64 << (tx % 64);
+                        self.free[ty as usize] -= 1;
+                    }
+                }
+            }
+        } else {
+            for (row, list) in r.runs.iter().enumerate() {
+                for &(a, b) in list {
+                    self.set_run(y + g + row as u32, x + g + a, x + g + b);
+                }
+            }
+        }
+        let dh = if turned { r.width } else { r.height } + 2 * g;
+        self.used_height = self.used_height.max(y + dh);
+    }
+}
+
+/// Dilated spans of a chart turned by 90 degrees (chart column c becomes row c).
+fn turned_spans(r: &Raster) -> Vec<Option<(u32, u32)>> {
+    let g = r.gutter as i64;
+    // Column extents of the undilated chart: for each column, rows covered.
+    let mut col: Vec<Option<(u32, u32)>> = vec![None; r.width as usize];
+    for (row, list) in r.runs.iter().enumerate() {
+        // Turned x of this row.
+        let tx = r.height - 1 - row as u32;
+        for &(a, b) in list {
+            for c in a..=b {
+                let e = &mut col[c as usize];
+                *e = Some(match *e {
+                    Some((lo, hi)) => (lo.min(tx), hi.max(tx)),
+                    None => (tx, tx),
+                });
+            }
+        }
+    }
+    let dh = r.width as i64 + 2 * g;
+    (0..dh)
+        .map(|t| {
+            let (mut a, mut b) = (u32::MAX, 0u32);
+            for src in (t - 2 * g).max(0)..=t.min(r.width as i64 - 1) {
+                if let Some((lo, hi)) = col[src as usize] {
+                    a = a.min(lo);
+                    b = b.max(hi + 2 * r.gutter);
+                }
+            }
+            (a != u32::MAX).then_some((a, b))
+        })
+        .collect()
+}
+
+/// Places every raster; returns (atlas, x, y, turned) per chart in input order, the number of
+/// atlases and the used height of the first. `strip`: one atlas of height `height` whose used
+/// height is measured; otherwise new `width` x `height` atlases are opened as needed.
+#[allow(clippy::type_complexity)]
+fn place(
+    rasters: &[Raster],
+    width: u32,
+    height: u32,
+    strip: bool,
+) -> Result<(Vec<(u32, u32, u32, bool)>, u32, u32), ParamError> {
+    let mut order: Vec<usize> = (0..rasters.len()).collect();
+    // Largest first: by longer side, then area (deterministic ties by index).
+    order.sort_by(|&a, &b| {
+        let (ra, rb) = (&rasters[a], &rasters[b]);
+        let ka = (ra.width.max(ra.height), ra.area);
+        let kb = (rb.width.max(rb.height), rb.area);
+        kb.cmp(&ka).then(a.cmp(&b))
+    });
+    let mut atlases: Vec<Bitmap> = vec![Bitmap::new(width, height)];
+    let mut out = vec![(0, 0, 0, false); rasters.len()];
+    for &i in &order {
+        let r = &rasters[i];
+        let g = 2 * r.gutter;
+        let straight = (&r.spans, r.width + g);
+        let turned = (turned_spans(r), r.height + g);
+        let mut placed = None;
+        for (k, atlas) in atlases.iter().enumerate() {
+            let a = atlas.find(straight.0, straight.1);
+            let b = if r.width != r.height || r.runs.len() > 1 {
+                atlas.find(&turned.0, turned.1)
+            } else {
+                None
+            };
+            let pick = match (a, b) {
+                (Some(p), Some(q)) => Some(if (q.1, q.0) < (p.1, p.0) {
+                    (q, true)
+                } else {
+                    (p, false)
+                }),
+                (Some(p), None) => Some((p, false)),
+                (None, Some(q)) => Some((q, true)),
+                (None, None) => None,
+            };
+            if let Some(p) = pick {
+                placed = Some((k, p));
+                break;
+            }
+        }
+        let (k, ((x, y), t)) = match placed {
+            Some(p) => p,
+            None if !strip => {
+                let fresh = Bitmap::new(width, height);
+                let found = fresh
+                    .find(straight.0, straight.1)
+                    .map(|p| (p, false))
+                    .or_else(|| fresh.find(&turned.0, turned.1).map(|p| (p, true)));
+                let Some(p) = found else {
+                    return Err(ParamError::ChartTooLarge {
+                        width: r.width + g,
+                        height: r.height + g,
+                        atlas: width,
+                    });
+                };
+                atlases.push(fresh);
+                (atlases.len() - 1, p)
+            }
+            None => {
+                return Err(ParamError::ChartTooLarge {
+                    width: r.width + g,
+                    height: r.height + g,
+                    atlas: width,
+                });
+            }
+        };
+        atlases[k].insert(r, x, y, t);
+        out[i] = (k as u32, x, y, t);
+    }
+    let used = atlases[0].used_height;
+    Ok((out, atlases.len() as u32, used))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(n: usize) -> (Vec<Point2<f64>>, Vec<[u32; 3]>) {
+        let uv = vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(n as f64, 0.0),
+            Point2::new(n as f64, n as f64),
+            Point2::new(0.0, n as f64),
+        ];
+        (uv, vec![[0, 1, 2], [0, 2, 3]])
+    }
+
+    #[test]
+    fn hull_and_rotation_of_a_tilted_rectangle() {
+        // A 4 x 1 rectangle turned by 30 degrees: the best box is 4 x 1 again.
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let pts: Vec<Point2<f64>> = [(0.0, 0.0), (4.0, 0.0), (4.0, 1.0), (0.0, 1.0), (2.0, 0.5)]
+            .iter()
+            .map(|&(x, y)| Point2::new(c * x - s * y, s * x + c * y))
+            .collect();
+        assert_eq!(convex_hull(&pts).len(), 4);
+        let m = min_area_rotation(&pts);
+        let q: Vec<Vector2<f64>> = pts.iter().map(|p| m * p.coords).collect();
+        let w = q.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max)
+            - q.iter().map(|p| p.x).fold(f64::INFINITY, f64::min);
+        let h = q.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max)
+            - q.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+        assert!((w - 4.0).abs() < 1e-9 && (h - 1.0).abs() < 1e-9, "{w} {h}");
+        // The v flip: determinant -1.
+        assert!((m.determinant() + 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn squares_pack_apart_by_the_gutter() {
+        // 60 squares cover more than 64 x 64 texels even without gutters: two atlases at least.
+        let shapes: Vec<_> = (0..60).map(|k| square(5 + k % 7)).collect();
+        let charts: Vec<ChartShape> = shapes
+            .iter()
+            .map(|(uv, f)| ChartShape {
+                uv,
+                faces: f,
+                area: 0.0,
+            })
+            .collect();
+        let cfg = PackConfig {
+            atlas_size: 64,
+            gutter: 2,
+            texels_per_unit: Some(1.0),
+        };
+        let p = pack(&charts, &cfg).unwrap();
+        // Boxes of each chart in texels, per atlas: no two within 2 texels of each other.
+        let boxes: Vec<(u32, Vector2<f64>, Vector2<f64>)> = p
+            .placements
+            .iter()
+            .zip(&shapes)
+            .map(|(pl, (uv, _))| {
+                let q: Vec<Vector2<f64>> = uv
+                    .iter()
+                    .map(|x| pl.linear * x.coords + pl.offset)
+                    .collect();
+                let lo = q
+                    .iter()
+                    .fold(Vector2::repeat(f64::INFINITY), |a, b| a.inf(b));
+                let hi = q
+                    .iter()
+                    .fold(Vector2::repeat(f64::NEG_INFINITY), |a, b| a.sup(b));
+                assert!(
+                    lo.x >= 2.0 && lo.y >= 2.0 && hi.x <= 62.0 && hi.y <= 62.0,
+                    "{lo} {hi}"
+                );
+                (pl.atlas, lo, hi)
+            })
+            .collect();
+        for i in 0..boxes.len() {
+            for j in i + 1..boxes.len() {
+                if boxes[i].0 != boxes[j].0 {
+                    continue;
+                }
+                let gap_x = (boxes[j].1.x - boxes[i].2.x).max(boxes[i].1.x - boxes[j].2.x);
+                let gap_y = (boxes[j].1.y - boxes[i].2.y).max(boxes[i].1.y - boxes[j].2.y);
+                assert!(gap_x.max(gap_y) >= 2.0 - 1e-9, "{i} {j}: {gap_x} {gap_y}");
+            }
+        }
+        assert!(p.atlases >= 2);
+    }
+}

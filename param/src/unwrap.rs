@@ -1,0 +1,382 @@
+//! The parameterisation pipeline: charts → flattened discs → packed atlas → per-corner UVs.
+//!
+//! 1. Initial charts: the caller's `face_chart` ([`unwrap_charts`]), or ([`unwrap`]) the
+//!    Reeb-graph segmentation [`crate::charts::segment`] (genus reduced, every chart a disc);
+//!    for a non-manifold mesh, which that refuses, or with `reeb_charts` off, the connected
+//!    components, left to the splitting below.
+//! 2. Each chart is cut out ([`ChartMesh`]); a chart that is not a topological disc (closed,
+//!    holes, handles, non-manifold, disconnected) is split in two ([`split::split_in_two`])
+//!    and each half handled again.
+//! 3. A disc is flattened by LSCM ([`lscm::lscm`]); if that folds (a flipped triangle, or a
+//!    boundary that crosses itself) the mean-value map onto a circle
+//!    ([`harmonic::mean_value`]), which cannot fold, is used instead.
+//! 4. The stretch optimisation (Sander et al. 2001) lowers the L2 stretch without flipping a
+//!    triangle.
+//! 5. A chart whose L2 stretch is still above `max_stretch`, or which folds whatever we do, is
+//!    split in two and both halves start again at 2.
+//! 6. Each chart is scaled so its UV area equals its 3D area, then all are packed
+//!    ([`pack::pack`]); `corner_uvs` (fresco's v-down convention), `face_groups` (chart id)
+//!    and, with several atlases, `face_textures` (atlas index) are written into the mesh.
+
+use fresco_core::nalgebra::Point2;
+use fresco_core::{Mesh, Progress, Topology};
+use serde::Serialize;
+
+use crate::ParamError;
+use crate::chart_mesh::ChartMesh;
+use crate::metrics::{chart_l2_stretch, polygon_is_simple, signed_area};
+use crate::pack::{ChartShape, PackConfig, pack};
+use crate::{harmonic, lscm, split, stretch};
+
+/// Settings of [`unwrap`]; the defaults suit a mesh of any size.
+#[derive(Clone, Debug)]
+pub struct UnwrapConfig {
+    /// Width and height of each atlas image, texels. Default 4096.
+    pub atlas_size: u32,
+    /// Minimum texels between charts and from the atlas border. Default 4.
+    pub gutter: u32,
+    /// Texels per world unit; `None` (default) picks the density that fills one atlas.
+    pub texels_per_unit: Option<f64>,
+    /// Charts whose L2 stretch (normalised by their own area) stays above this are split.
+    /// Default 1.1: about the stretch of a spherical cap of 60 degrees, the curvature a
+    /// chart of a typical atlas spans.
+    pub max_stretch: f64,
+    /// Iterations of the stretch optimisation (0 turns it off). Default 6.
+    pub stretch_iterations: u32,
+    /// Start from the Reeb-graph charts (default); `false` starts from connected components.
+    pub reeb_charts: bool,
+    /// Settings of the Reeb-graph segmentation.
+    pub charts: crate::charts::ChartConfig,
+}
+
+impl Default for UnwrapConfig {
+    fn default() -> Self {
+        UnwrapConfig {
+            atlas_size: 4096,
+            gutter: 4,
+            texels_per_unit: None,
+            max_stretch: 1.1,
+            stretch_iterations: 6,
+            reeb_charts: true,
+            charts: crate::charts::ChartConfig::default(),
+        }
+    }
+}
+
+/// What [`unwrap`] did.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct UnwrapReport {
+    pub charts: usize,
+    pub atlases: u32,
+    pub texels_per_unit: f64,
+    /// Charts split because they were not discs, folded, or were too stretched.
+    pub splits: usize,
+    /// Charts flattened by the mean-value map because LSCM folded.
+    pub harmonic_fallbacks: usize,
+    /// Repairs and oddities of the input, one line each (also logged as warnings).
+    pub warnings: Vec<String>,
+}
+
+/// Unwraps every connected component of `mesh` (see the module documentation).
+pub fn unwrap(
+    mesh: &mut Mesh,
+    cfg: &UnwrapConfig,
+    progress: &dyn Progress,
+) -> Result<UnwrapReport, ParamError> {
+    check(mesh)?;
+    let topo = Topology::build(mesh)?;
+    let mut note = None;
+    let face_chart: Vec<u32> = if cfg.reeb_charts {
+        match crate::charts::segment(mesh, &cfg.charts, progress) {
+            Ok(charts) => charts.face_chart,
+            Err(ParamError::NonManifold { .. }) => {
+                note = Some("non-manifold mesh: charts start from connected components instead of the Reeb graph".to_string());
+                topo.face_components().to_vec()
+            }
+            Err(e) => return Err(e),
+        }
+    } else {
+        topo.face_components().to_vec()
+    };
+    let mut report = unwrap_charts(mesh, &face_chart, cfg, progress)?;
+    if let Some(n) = note {
+        tracing::warn!("{n}");
+        report.warnings.push(n);
+    }
+    Ok(report)
+}
+
+fn check(mesh: &Mesh) -> Result<(), ParamError> {
+    mesh.validate()?;
+    if mesh.faces.is_empty() {
+        return Err(ParamError::EmptyMesh);
+    }
+    Ok(())
+}
+
+/// Names the first few elements of a list for a warning.
+fn first_few<T: std::fmt::Debug>(items: &[T]) -> String {
+    let shown: Vec<String> = items.iter().take(8).map(|x| format!("{x:?}")).collect();
+    if items.len() > 8 {
+        format!("{} ...", shown.join(", "))
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// Input problems that are repaired rather than refused, as warnings naming the elements.
+fn input_warnings(mesh: &Mesh, topo: &Topology) -> Vec<String> {
+    let mut out = Vec::new();
+    let nm: Vec<[u32; 2]> = topo
+        .non_manifold_edges()
+        .iter()
+        .map(|&e| topo.edges()[e as usize])
+        .collect();
+    if !nm.is_empty() {
+        out.push(format!(
+            "{} non-manifold edge(s) (vertex pairs {}): cut, their faces go to different charts",
+            nm.len(),
+            first_few(&nm)
+        ));
+    }
+    if !topo.non_manifold_vertices().is_empty() {
+        out.push(format!(
+            "{} non-manifold vertex(es) ({}): split between charts",
+            topo.non_manifold_vertices().len(),
+            first_few(topo.non_manifold_vertices())
+        ));
+    }
+    if !topo.isolated_vertices().is_empty() {
+        out.push(format!(
+            "{} isolated vertex(es) ({}): no face uses them, they get no texture coordinates",
+            topo.isolated_vertices().len(),
+            first_few(topo.isolated_vertices())
+        ));
+    }
+    // Zero-area: below 1e-12 of the squared bounding-box diagonal (float noise on any scale).
+    let scale = mesh.bounding_box().map_or(1.0, |b| b.diagonal().powi(2));
+    let zero: Vec<usize> = (0..mesh.faces.len())
+        .filter(|&f| mesh.face_area(f) <= 1e-12 * scale)
+        .collect();
+    if !zero.is_empty() {
+        out.push(format!(
+            "{} zero-area face(s) ({}): flattened with bounded weights, they have no orientation",
+            zero.len(),
+            first_few(&zero)
+        ));
+    }
+    if !topo.inconsistently_oriented_edges().is_empty() {
+        out.push(format!(
+            "{} edge(s) with inconsistently oriented faces ({}): cut",
+            topo.inconsistently_oriented_edges().len(),
+            first_few(topo.inconsistently_oriented_edges())
+        ));
+    }
+    out
+}
+
+/// A flattened chart: UVs in world units (area equal to the 3D area), counter-clockwise.
+struct Flat {
+    chart: ChartMesh,
+    uv: Vec<Point2<f64>>,
+    area: f64,
+    splits: usize,
+    fallback: bool,
+}
+
+/// Unwraps `mesh` starting from the charts `face_chart` (a label per face; labels need not be
+/// contiguous). Charts that are not discs or are too stretched are split further.
+pub fn unwrap_charts(
+    mesh: &mut Mesh,
+    face_chart: &[u32],
+    cfg: &UnwrapConfig,
+    progress: &dyn Progress,
+) -> Result<UnwrapReport, ParamError> {
+    check(mesh)?;
+    if face_chart.len() != mesh.faces.len() {
+        return Err(ParamError::ChartLength {
+            len: face_chart.len(),
+            faces: mesh.faces.len(),
+        });
+    }
+    if cfg.max_stretch.is_nan() || cfg.max_stretch < 1.0 {
+        return Err(ParamError::Config(format!(
+            "max_stretch {} must be at least 1",
+            cfg.max_stretch
+        )));
+    }
+    let topo = Topology::build(mesh)?;
+    let warnings = input_warnings(mesh, &topo);
+    for w in &warnings {
+        tracing::warn!("{w}");
+    }
+    let mut groups: std::collections::BTreeMap<u32, Vec<u32>> = Default::default();
+    for (f, &c) in face_chart.iter().enumerate() {
+        groups.entry(c).or_default().push(f as u32);
+    }
+    let groups: Vec<Vec<u32>> = groups.into_values().collect();
+    progress.begin("flattening charts", mesh.faces.len() as u64);
+    let m: &Mesh = mesh;
+    let flats: Vec<Flat> = {
+        use rayon::prelude::*;
+        groups
+            .par_iter()
+            .flat_map_iter(|faces| flatten(m, faces.clone(), cfg, progress))
+            .collect()
+    };
+    progress.end();
+    progress.begin("packing charts", 0);
+    let shapes: Vec<ChartShape> = flats
+        .iter()
+        .map(|f| ChartShape {
+            uv: &f.uv,
+            faces: &f.chart.faces,
+            area: f.area,
+        })
+        .collect();
+    let packing = pack(
+        &shapes,
+        &PackConfig {
+            atlas_size: cfg.atlas_size,
+            gutter: cfg.gutter,
+            texels_per_unit: cfg.texels_per_unit,
+        },
+    )?;
+    progress.end();
+    let nf = mesh.faces.len();
+    let mut corner_uvs = vec![[[0f32; 2]; 3]; nf];
+    let mut groups_out = vec![0u32; nf];
+    let mut textures = vec![0u32; nf];
+    for (id, (flat, pl)) in flats.iter().zip(&packing.placements).enumerate() {
+        for (lf, tri) in flat.chart.faces.iter().enumerate() {
+            let g = flat.chart.global_face[lf] as usize;
+            corner_uvs[g] = tri.map(|v| {
+                let p = pl.apply(flat.uv[v as usize], cfg.atlas_size);
+                [p.x as f32, p.y as f32]
+            });
+            groups_out[g] = id as u32;
+            textures[g] = pl.atlas;
+        }
+    }
+    mesh.corner_uvs = Some(corner_uvs);
+    mesh.face_groups = Some(groups_out);
+    mesh.face_textures = (packing.atlases > 1).then_some(textures);
+    Ok(UnwrapReport {
+        charts: flats.len(),
+        atlases: packing.atlases,
+        texels_per_unit: packing.texels_per_unit,
+        splits: flats.iter().map(|f| f.splits).sum(),
+        harmonic_fallbacks: flats.iter().filter(|f| f.fallback).count(),
+        warnings,
+    })
+}
+
+/// Whether `uv` is a valid flattening of the disc: every triangle of positive 3D area keeps
+/// its orientation and the boundary does not cross itself.
+fn folds(chart: &ChartMesh, uv: &[Point2<f64>], boundary: &[u32]) -> bool {
+    if uv.iter().any(|p| !p.x.is_finite() || !p.y.is_finite()) {
+        return true;
+    }
+    let flipped =
+        chart.faces.iter().enumerate().any(|(f, t)| {
+            chart.face_area(f) > 0.0 && signed_area(t.map(|v| uv[v as usize])) <= 0.0
+        });
+    flipped || !polygon_is_simple(uv, boundary)
+}
+
+/// Flattens the chart made of `faces`, splitting as needed (see the module documentation).
+fn flatten(mesh: &Mesh, faces: Vec<u32>, cfg: &UnwrapConfig, progress: &dyn Progress) -> Vec<Flat> {
+    let chart = ChartMesh::extract(mesh, &faces);
+    let parts = chart.edge_components();
+    if parts.len() > 1 {
+        return parts
+            .into_iter()
+            .flat_map(|p| flatten(mesh, p, cfg, progress))
+            .collect();
+    }
+    if chart.faces.len() == 1 {
+        progress.advance(1);
+        return vec![single_triangle(chart)];
+    }
+    let mut fallback = false;
+    let flat = chart.disc_boundary().ok().and_then(|boundary| {
+        let mut uv = lscm::lscm(&chart, &boundary)
+            .ok()
+            .filter(|uv| !folds(&chart, uv, &boundary));
+        if uv.is_none() {
+            fallback = true;
+            uv = harmonic::mean_value(&chart, &boundary)
+                .ok()
+                .filter(|uv| !folds(&chart, uv, &boundary));
+        }
+        let mut uv = uv?;
+        if cfg.stretch_iterations > 0 {
+            stretch::optimise(&chart, &mut uv, &boundary, cfg.stretch_iterations);
+        }
+        let s = chart_l2_stretch(&chart.positions, &chart.faces, &uv);
+        (s <= cfg.max_stretch).then_some(uv)
+    });
+    match flat {
+        Some(uv) => {
+            progress.advance(chart.faces.len() as u64);
+            vec![normalise(chart, uv, 0, fallback)]
+        }
+        None => {
+            let (a, b) = split::split_in_two(&chart);
+            let (mut x, y) = rayon::join(
+                || flatten(mesh, a, cfg, progress),
+                || flatten(mesh, b, cfg, progress),
+            );
+            x.extend(y);
+            if let Some(first) = x.first_mut() {
+                first.splits += 1;
+            }
+            x
+        }
+    }
+}
+
+/// A lone triangle laid flat isometrically.
+fn single_triangle(chart: ChartMesh) -> Flat {
+    let [a, b, c] = chart.faces[0].map(|v| chart.positions[v as usize]);
+    let (e1, e2) = (b - a, c - a);
+    let l = e1.norm();
+    let x = if l > 0.0 { e1 / l } else { e1 };
+    let px = e2.dot(&x);
+    let py = (e2 - x * px).norm();
+    let mut uv = vec![Point2::origin(); chart.vertex_count()];
+    let t = chart.faces[0];
+    uv[t[1] as usize] = Point2::new(l, 0.0);
+    uv[t[2] as usize] = Point2::new(px, py);
+    let area = chart.area();
+    Flat {
+        chart,
+        uv,
+        area,
+        splits: 0,
+        fallback: false,
+    }
+}
+
+/// Scales `uv` so that its area equals the chart's 3D area (one texel density for all).
+fn normalise(chart: ChartMesh, mut uv: Vec<Point2<f64>>, splits: usize, fallback: bool) -> Flat {
+    let area = chart.area();
+    let uv_area: f64 = chart
+        .faces
+        .iter()
+        .map(|t| signed_area(t.map(|v| uv[v as usize])).abs())
+        .sum();
+    if uv_area > 0.0 && area > 0.0 {
+        let s = (area / uv_area).sqrt();
+        for p in &mut uv {
+            *p = Point2::from(p.coords * s);
+        }
+    }
+    Flat {
+        chart,
+        uv,
+        area,
+        splits,
+        fallback,
+    }
+}
