@@ -234,7 +234,7 @@ fn min_area_rotation(uv: &[Point2<f64>]) -> Matrix2<f64> {
 }
 
 /// Andrew's monotone chain; counter-clockwise, no repeated points.
-fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
+pub(crate) fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
     let mut p: Vec<Point2<f64>> = points.to_vec();
     p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     p.dedup();

@@ -43,7 +43,7 @@ pub fn split_in_two(chart: &ChartMesh) -> (Vec<u32>, Vec<u32>) {
     };
     let mut side = None;
     if spread_cos < CURVED_COS {
-        side = by_normals(&normal, &area, mean);
+        side = by_normal_gap(&normal, &area).or_else(|| by_normals(&normal, &area, mean));
     }
     let mut side = side.unwrap_or_else(|| by_length(chart, &area));
     smooth(chart, &mut side);
@@ -62,6 +62,56 @@ pub fn split_in_two(chart: &ChartMesh) -> (Vec<u32>, Vec<u32>) {
         return (x.to_vec(), y.to_vec());
     }
     (a, b)
+}
+
+/// Normal gap (in cos units) that marks two distinct faces of the shape, e.g. a cap and the
+/// tube around it: 0.3, about 17 degrees between the closest normals of the two groups.
+const NORMAL_GAP: f64 = 0.3;
+
+/// A crease between two groups of normals: along each principal axis of the (area-weighted,
+/// centred) normal covariance, the largest gap between consecutive projected normals; if the
+/// widest is at least [`NORMAL_GAP`], the faces on either side of it. Separates a cap from
+/// its tube, or two sides of a box, where two-means would peel off a few faces at a time.
+fn by_normal_gap(normal: &[Vector3<f64>], area: &[f64]) -> Option<Vec<bool>> {
+    let total: f64 = area.iter().sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let mean: Vector3<f64> = normal
+        .iter()
+        .zip(area)
+        .map(|(n, a)| n * *a)
+        .sum::<Vector3<f64>>()
+        / total;
+    let mut cov = Matrix3::zeros();
+    for (n, a) in normal.iter().zip(area) {
+        let d = n - mean;
+        cov += d * d.transpose() * *a;
+    }
+    let eig = SymmetricEigen::new(cov);
+    let mut best: Option<(f64, Vector3<f64>, f64)> = None;
+    for k in 0..3 {
+        let axis = eig.eigenvectors.column(k).into_owned();
+        let mut t: Vec<f64> = normal
+            .iter()
+            .zip(area)
+            .filter(|(_, a)| **a > 0.0)
+            .map(|(n, _)| n.dot(&axis))
+            .collect();
+        t.sort_by(f64::total_cmp);
+        for w in t.windows(2) {
+            let gap = w[1] - w[0];
+            if best.as_ref().is_none_or(|b| gap > b.0) {
+                best = Some((gap, axis, 0.5 * (w[0] + w[1])));
+            }
+        }
+    }
+    let (gap, axis, cut) = best?;
+    if gap < NORMAL_GAP {
+        return None;
+    }
+    let side: Vec<bool> = normal.iter().map(|n| n.dot(&axis) > cut).collect();
+    (side.iter().any(|&s| s) && side.iter().any(|&s| !s)).then_some(side)
 }
 
 /// Two-means on unit normals (area-weighted), seeded by the normal farthest from the mean

@@ -41,9 +41,16 @@ pub struct UnwrapConfig {
     /// Default 1.1: about the stretch of a spherical cap of 60 degrees, the curvature a
     /// chart of a typical atlas spans.
     pub max_stretch: f64,
+    /// Charts covering less than this fraction of their UV convex hull (C shapes, spirals,
+    /// which pack badly) are split. Default 0.5.
+    pub min_hull_fill: f64,
     /// Iterations of the stretch optimisation (0 turns it off). Default 6.
     pub stretch_iterations: u32,
-    /// Start from the Reeb-graph charts (default); `false` starts from connected components.
+    /// Start from the Reeb-graph charts; `false` (default) starts from connected components and
+    /// lets the splitting make the charts. Off by default because on coarse meshes the
+    /// Reeb charts come out in pieces joined only at vertices (the temple's columns split into
+    /// single triangles: 273 charts, against 28 from components) and segmenting costs more
+    /// than unwrapping; see `bench/param.sh` for both.
     pub reeb_charts: bool,
     /// Settings of the Reeb-graph segmentation.
     pub charts: crate::charts::ChartConfig,
@@ -57,7 +64,8 @@ impl Default for UnwrapConfig {
             texels_per_unit: None,
             max_stretch: 1.1,
             stretch_iterations: 6,
-            reeb_charts: true,
+            min_hull_fill: 0.5,
+            reeb_charts: false,
             charts: crate::charts::ChartConfig::default(),
         }
     }
@@ -88,6 +96,13 @@ pub fn unwrap(
     let mut note = None;
     let face_chart: Vec<u32> = if cfg.reeb_charts {
         match crate::charts::segment(mesh, &cfg.charts, progress) {
+            Ok(charts) if fragmented(mesh, &charts.face_chart) => {
+                note = Some(format!(
+                    "the Reeb-graph charts ({}) fall apart into pieces joined only at vertices (mesh too coarse for them): charts start from connected components instead",
+                    charts.count
+                ));
+                topo.face_components().to_vec()
+            }
             Ok(charts) => charts.face_chart,
             Err(ParamError::NonManifold { .. }) => {
                 note = Some("non-manifold mesh: charts start from connected components instead of the Reeb graph".to_string());
@@ -112,6 +127,21 @@ fn check(mesh: &Mesh) -> Result<(), ParamError> {
         return Err(ParamError::EmptyMesh);
     }
     Ok(())
+}
+
+/// Whether charts fall apart into more than 1.5 times as many edge-connected pieces as there
+/// are charts: on coarse meshes the geodesic splits can leave faces of a chart joined only at
+/// vertices, and each such piece would become a chart of its own.
+fn fragmented(mesh: &Mesh, face_chart: &[u32]) -> bool {
+    let mut groups: std::collections::BTreeMap<u32, Vec<u32>> = Default::default();
+    for (f, &c) in face_chart.iter().enumerate() {
+        groups.entry(c).or_default().push(f as u32);
+    }
+    let pieces: usize = groups
+        .values()
+        .map(|faces| ChartMesh::extract(mesh, faces).edge_components().len())
+        .sum();
+    2 * pieces > 3 * groups.len()
 }
 
 /// Names the first few elements of a list for a warning.
@@ -314,7 +344,8 @@ fn flatten(mesh: &Mesh, faces: Vec<u32>, cfg: &UnwrapConfig, progress: &dyn Prog
             stretch::optimise(&chart, &mut uv, &boundary, cfg.stretch_iterations);
         }
         let s = chart_l2_stretch(&chart.positions, &chart.faces, &uv);
-        (s <= cfg.max_stretch).then_some(uv)
+        let fill = hull_fill(&chart, &uv);
+        (s <= cfg.max_stretch && fill >= cfg.min_hull_fill).then_some(uv)
     });
     match flat {
         Some(uv) => {
@@ -333,6 +364,26 @@ fn flatten(mesh: &Mesh, faces: Vec<u32>, cfg: &UnwrapConfig, progress: &dyn Prog
             }
             x
         }
+    }
+}
+
+/// UV area of the chart over the area of its UV convex hull.
+fn hull_fill(chart: &ChartMesh, uv: &[Point2<f64>]) -> f64 {
+    let area: f64 = chart
+        .faces
+        .iter()
+        .map(|t| signed_area(t.map(|v| uv[v as usize])).abs())
+        .sum();
+    let hull = crate::pack::convex_hull(uv);
+    let mut twice = 0.0;
+    for k in 0..hull.len() {
+        let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
+        twice += a.x * b.y - b.x * a.y;
+    }
+    if twice > 0.0 {
+        (2.0 * area / twice).min(1.0)
+    } else {
+        1.0
     }
 }
 
