@@ -4,6 +4,7 @@
 //! Every subcommand returns a JSON summary; `--json` prints it on stdout, otherwise a short
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
+mod matching;
 mod progress;
 mod pst;
 mod synth;
@@ -42,6 +43,8 @@ enum Command {
     Synth(synth::SynthArgs),
     /// Point-sampled textures for meshes too large for memory.
     Pst(pst::PstArgs),
+    /// Match the features of a workspace's images and verify the pairs' two-view geometry.
+    Match(matching::MatchArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -68,6 +71,7 @@ fn main() -> ExitCode {
     let result: anyhow::Result<serde_json::Value> = match cli.command {
         Command::Synth(args) => synth::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
+        Command::Match(args) => matching::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

@@ -20,6 +20,18 @@
 //!   with MSAC scoring, adaptive iteration count, seeded deterministic sampling.
 //! - `feature_file.rs`: [`feature_file::Features`] (keypoints, u8 descriptors) and their binary file.
 //! - `match_file.rs`: the binary file of verified pairs ([`two_view::VerifiedPair`]).
+//! - `fundamental.rs`: [`fundamental::fundamental_eight_point`] (normalised, rank 2),
+//!   [`fundamental::fundamental_seven_point`], Sampson error, [`fundamental::FundamentalEstimator`].
+//! - `essential.rs`: [`essential::essential_five_point`] (Nistér/Stewénius), the decomposition
+//!   [`essential::pose_from_essential`] with cheirality, [`essential::EssentialEstimator`].
+//! - `homography.rs`: [`homography::homography_dlt`] (normalised DLT), transfer error,
+//!   [`homography::HomographyEstimator`].
+//! - `verification.rs`: [`verification::verify_pair`], COLMAP-like classification of a pair
+//!   (calibrated, uncalibrated, planar, panoramic, degenerate) with its relative pose.
+//! - `matching.rs`: [`matching::match_descriptors`] (blocked brute force, ratio and mutual tests,
+//!   rayon), [`matching::select_pairs`] (exhaustive, sequential, retrieval),
+//!   [`matching::match_pairs`] (matching + verification of many pairs).
+//! - `view_graph.rs`: [`view_graph::ViewGraph`] (petgraph) and its connected components.
 //! - `two_view.rs`: [`two_view::TwoViewGeometry`] of a pair (kind, F, E, H, relative pose, inliers).
 //! - `focal_prior.rs`: [`focal_prior::focal_from_exif`], [`focal_prior::read_calibration_file`].
 //! - `workspace.rs`: the folder layout and its readers [`workspace::read_images`],
@@ -27,12 +39,16 @@
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
+pub mod essential;
 pub mod evaluate;
 pub mod feature_file;
 pub mod focal_prior;
+pub mod fundamental;
+pub mod homography;
 pub mod loss;
 pub mod mapper;
 pub mod match_file;
+pub mod matching;
 pub mod pnp;
 pub mod ransac;
 pub mod silhouette;
@@ -40,4 +56,6 @@ pub mod synthetic;
 pub mod tracks;
 pub mod triangulation;
 pub mod two_view;
+pub mod verification;
+pub mod view_graph;
 pub mod workspace;

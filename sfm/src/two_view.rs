@@ -2,7 +2,16 @@
 //! `TwoViewGeometry` configurations), the matrices, the relative pose and the inlier matches.
 
 use fresco_core::Rigid3;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Point2};
+
+/// One putative match between two images: a point in image 1 and a point in image 2, in the
+/// same units (pixels for the fundamental matrix and the homography, normalised image
+/// coordinates `K⁻¹ x` for the essential matrix).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correspondence {
+    pub x1: Point2<f64>,
+    pub x2: Point2<f64>,
+}
 
 /// What relation between two views the verified matches support.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]

@@ -1,0 +1,446 @@
+//! Descriptor matching and pair selection (paper 003, section 3: matching features and
+//! selecting the images that share points).
+//!
+//! - [`match_descriptors`]: brute-force nearest and second-nearest neighbours in L2 between
+//!   two sets of u8 SIFT descriptors, Lowe's ratio test (Lowe 2004, section 7.1: the nearest
+//!   distance below `ratio` times the second; 0.8 as in the paper and COLMAP) and the mutual
+//!   check (the nearest neighbour of the match, searched the other way, is the query). The
+//!   distances come from `|a|² + |b|² - 2 a·b` with the dot products in f32 (exact: u8
+//!   products summed over 128 entries stay below 2²⁴), computed in tiles of 4 query rows
+//!   against one candidate so each candidate is loaded once per tile and the inner loop has
+//!   independent accumulators the compiler vectorises; query blocks run on rayon, and each
+//!   block also keeps the best query of every candidate, merged at the end, so one pass gives
+//!   both directions.
+//! - [`select_pairs`]: which image pairs to match: all (exhaustive), each image with the
+//!   next `n` (sequential, for video-like captures), or each image with its `k` most similar
+//!   images by a global descriptor (retrieval: the mean of the image's unit descriptors,
+//!   centred on the mean over all images and normalised, compared by dot product).
+//! - [`match_pairs`]: matching and geometric verification ([`crate::verification`]) of the
+//!   selected pairs, on rayon, with progress.
+
+use fresco_core::Progress;
+use nalgebra::Point2;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::feature_file::{DESCRIPTOR_LEN, Descriptor, Features};
+use crate::focal_prior::FocalPrior;
+use crate::two_view::VerifiedPair;
+use crate::verification::{VerificationConfig, verify_pair};
+
+/// Descriptor matching settings.
+#[derive(Clone, Debug, Serialize)]
+pub struct MatchingConfig {
+    /// Lowe's ratio: nearest distance < `ratio` x second-nearest distance. Default 0.8.
+    pub ratio: f32,
+    /// Keep a match only if it is also the nearest neighbour in the other direction. Default true.
+    pub mutual: bool,
+}
+
+impl Default for MatchingConfig {
+    fn default() -> Self {
+        MatchingConfig {
+            ratio: 0.8,
+            mutual: true,
+        }
+    }
+}
+
+/// Query rows per rayon task.
+const BLOCK_ROWS: usize = 64;
+/// Candidates per cache tile (64 x 512 bytes = 32 KiB of f32 descriptors).
+const BLOCK_COLS: usize = 64;
+
+type DescF32 = [f32; DESCRIPTOR_LEN];
+
+fn to_f32(d: &[Descriptor]) -> (Vec<DescF32>, Vec<f32>) {
+    let v: Vec<DescF32> = d.iter().map(|x| x.map(f32::from)).collect();
+    let n = v.iter().map(|x| x.iter().map(|a| a * a).sum()).collect();
+    (v, n)
+}
+
+/// Dot products of four query descriptors with one candidate.
+#[inline(always)]
+fn dot4(a: [&DescF32; 4], b: &DescF32) -> [f32; 4] {
+    let mut acc = [[0f32; 8]; 4];
+    for k in (0..DESCRIPTOR_LEN).step_by(8) {
+        for r in 0..4 {
+            for l in 0..8 {
+                acc[r][l] += a[r][k + l] * b[k + l];
+            }
+        }
+    }
+    acc.map(|v| v.iter().sum())
+}
+
+/// Best and second-best (squared distance, index) of one query.
+#[derive(Clone, Copy)]
+struct Best2 {
+    d1: f32,
+    i1: u32,
+    d2: f32,
+}
+
+impl Best2 {
+    const EMPTY: Best2 = Best2 {
+        d1: f32::INFINITY,
+        i1: u32::MAX,
+        d2: f32::INFINITY,
+    };
+    #[inline(always)]
+    fn push(&mut self, d: f32, i: u32) {
+        if d < self.d1 {
+            self.d2 = self.d1;
+            self.d1 = d;
+            self.i1 = i;
+        } else if d < self.d2 {
+            self.d2 = d;
+        }
+    }
+}
+
+/// Matches descriptors `d1` (queries) against `d2`: `[index in d1, index in d2]` pairs that pass
+/// the ratio test and, if enabled, the mutual check; ascending in the first index.
+pub fn match_descriptors(
+    d1: &[Descriptor],
+    d2: &[Descriptor],
+    config: &MatchingConfig,
+) -> Vec<[u32; 2]> {
+    if d1.is_empty() || d2.len() < 2 {
+        return Vec::new();
+    }
+    let (a, na) = to_f32(d1);
+    let (b, nb) = to_f32(d2);
+    let n2 = b.len();
+    type State = (Vec<(usize, Vec<Best2>)>, Vec<(f32, u32)>);
+    let init = || -> State { (Vec::new(), vec![(f32::INFINITY, u32::MAX); n2]) };
+    let (mut rows, cols) = a
+        .par_chunks(BLOCK_ROWS)
+        .enumerate()
+        .fold(init, |(mut rows, mut cols), (block, queries)| {
+            let first = block * BLOCK_ROWS;
+            let mut best = vec![Best2::EMPTY; queries.len()];
+            for c0 in (0..n2).step_by(BLOCK_COLS) {
+                let c1 = (c0 + BLOCK_COLS).min(n2);
+                let mut r = 0;
+                while r < queries.len() {
+                    // Tiles of four queries; the tail repeats the last query (results ignored).
+                    let idx = [r, (r + 1), (r + 2), (r + 3)].map(|i| i.min(queries.len() - 1));
+                    let q = idx.map(|i| &queries[i]);
+                    for c in c0..c1 {
+                        let dots = dot4(q, &b[c]);
+                        for (t, &i) in idx.iter().enumerate() {
+                            if r + t >= queries.len() {
+                                break;
+                            }
+                            let d = (na[first + i] + nb[c] - 2.0 * dots[t]).max(0.0);
+                            best[i].push(d, c as u32);
+                            if d < cols[c].0 {
+                                cols[c] = (d, (first + i) as u32);
+                            }
+                        }
+                    }
+                    r += 4;
+                }
+            }
+            rows.push((block, best));
+            (rows, cols)
+        })
+        .reduce(init, |(mut ra, mut ca), (rb, cb)| {
+            ra.extend(rb);
+            for (x, y) in ca.iter_mut().zip(cb) {
+                // Ties go to the lower query index, so the result does not depend on the split.
+                if y.0 < x.0 || (y.0 == x.0 && y.1 < x.1) {
+                    *x = y;
+                }
+            }
+            (ra, ca)
+        });
+    rows.sort_by_key(|r| r.0);
+    let ratio2 = config.ratio * config.ratio;
+    let mut out = Vec::new();
+    for (block, best) in rows {
+        for (k, b2) in best.iter().enumerate() {
+            let i = (block * BLOCK_ROWS + k) as u32;
+            if b2.i1 == u32::MAX || b2.d1 >= ratio2 * b2.d2 {
+                continue;
+            }
+            if config.mutual && cols[b2.i1 as usize].1 != i {
+                continue;
+            }
+            out.push([i, b2.i1]);
+        }
+    }
+    out
+}
+
+/// Which image pairs to match.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PairSelection {
+    /// Every pair: n (n - 1) / 2 pairs.
+    Exhaustive,
+    /// Each image with the next `overlap` images in order (video-like captures).
+    Sequential { overlap: usize },
+    /// Each image with its `top_k` most similar images by a global descriptor.
+    Retrieval { top_k: usize },
+}
+
+/// The global descriptor of an image: the mean of its unit-length descriptors.
+fn mean_descriptor(features: &Features) -> Vec<f32> {
+    let mut m = vec![0f32; DESCRIPTOR_LEN];
+    for d in &features.descriptors {
+        let n = d
+            .iter()
+            .map(|&v| (v as f32) * (v as f32))
+            .sum::<f32>()
+            .sqrt();
+        if n > 0.0 {
+            for (a, &v) in m.iter_mut().zip(d) {
+                *a += v as f32 / n;
+            }
+        }
+    }
+    let n = features.descriptors.len().max(1) as f32;
+    m.iter_mut().for_each(|a| *a /= n);
+    m
+}
+
+/// Pairs `(i, j)`, `i < j`, of indices into `features` to match, sorted.
+pub fn select_pairs(features: &[Features], selection: PairSelection) -> Vec<(usize, usize)> {
+    let n = features.len();
+    let mut pairs: Vec<(usize, usize)> = match selection {
+        PairSelection::Exhaustive => (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .collect(),
+        PairSelection::Sequential { overlap } => (0..n)
+            .flat_map(|i| (i + 1..n.min(i + 1 + overlap)).map(move |j| (i, j)))
+            .collect(),
+        PairSelection::Retrieval { top_k } => {
+            let mut g: Vec<Vec<f32>> = features.par_iter().map(mean_descriptor).collect();
+            // Centre on the collection's mean: what all images share (the average SIFT
+            // histogram) says nothing about overlap.
+            let mut centre = vec![0f32; DESCRIPTOR_LEN];
+            for v in &g {
+                for (c, x) in centre.iter_mut().zip(v) {
+                    *c += x / n.max(1) as f32;
+                }
+            }
+            for v in &mut g {
+                for (x, c) in v.iter_mut().zip(&centre) {
+                    *x -= c;
+                }
+                let norm = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+                if norm > 0.0 {
+                    v.iter_mut().for_each(|x| *x /= norm);
+                }
+            }
+            let mut pairs = Vec::new();
+            for i in 0..n {
+                let mut sims: Vec<(f32, usize)> = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| (g[i].iter().zip(&g[j]).map(|(a, b)| a * b).sum(), j))
+                    .collect();
+                sims.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                for &(_, j) in sims.iter().take(top_k) {
+                    pairs.push((i.min(j), i.max(j)));
+                }
+            }
+            pairs
+        }
+    };
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// One image as matching needs it: its id, features and focal prior.
+#[derive(Clone, Copy)]
+pub struct MatchImage<'a> {
+    pub id: u32,
+    pub features: &'a Features,
+    pub prior: &'a FocalPrior,
+}
+
+/// Matches and verifies the pairs `pairs` (indices into `images`) on rayon. Returns one
+/// [`VerifiedPair`] per pair (degenerate ones included, so callers can report them), ordered
+/// by `(image1, image2)` ids with `image1 < image2`.
+pub fn match_pairs(
+    images: &[MatchImage],
+    pairs: &[(usize, usize)],
+    matching: &MatchingConfig,
+    verification: &VerificationConfig,
+    progress: &dyn Progress,
+) -> Vec<VerifiedPair> {
+    let keypoints: Vec<Vec<Point2<f64>>> = images
+        .iter()
+        .map(|im| {
+            im.features
+                .keypoints
+                .iter()
+                .map(|k| Point2::new(k.x as f64, k.y as f64))
+                .collect()
+        })
+        .collect();
+    progress.begin("matching", pairs.len() as u64);
+    let mut out: Vec<VerifiedPair> = pairs
+        .par_iter()
+        .map(|&(i, j)| {
+            // Ids in increasing order, as the match file requires.
+            let (i, j) = if images[i].id < images[j].id {
+                (i, j)
+            } else {
+                (j, i)
+            };
+            let (a, b) = (&images[i], &images[j]);
+            let matches =
+                match_descriptors(&a.features.descriptors, &b.features.descriptors, matching);
+            let v = verify_pair(
+                &keypoints[i],
+                &keypoints[j],
+                &matches,
+                a.prior,
+                b.prior,
+                verification,
+            );
+            progress.advance(1);
+            VerifiedPair {
+                image1: a.id,
+                image2: b.id,
+                num_matches: matches.len() as u32,
+                geometry: v.geometry,
+            }
+        })
+        .collect();
+    progress.end();
+    out.sort_by_key(|p| (p.image1, p.image2));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fundamental::tests::Lcg;
+
+    fn random_descriptors(n: usize, seed: u64) -> Vec<Descriptor> {
+        let mut rng = Lcg(seed);
+        (0..n)
+            .map(|_| std::array::from_fn(|_| (rng.uniform() * 120.0) as u8))
+            .collect()
+    }
+
+    /// The slow obvious implementation: exact integer distances.
+    fn brute_force(
+        d1: &[Descriptor],
+        d2: &[Descriptor],
+        ratio: f32,
+        mutual: bool,
+    ) -> Vec<[u32; 2]> {
+        let dist = |a: &Descriptor, b: &Descriptor| -> i64 {
+            a.iter()
+                .zip(b)
+                .map(|(&x, &y)| (x as i64 - y as i64).pow(2))
+                .sum()
+        };
+        let nearest = |q: &Descriptor, set: &[Descriptor]| -> (usize, i64, i64) {
+            let mut all: Vec<(i64, usize)> = set
+                .iter()
+                .enumerate()
+                .map(|(j, d)| (dist(q, d), j))
+                .collect();
+            all.sort();
+            (all[0].1, all[0].0, all.get(1).map_or(i64::MAX, |x| x.0))
+        };
+        let mut out = Vec::new();
+        for (i, q) in d1.iter().enumerate() {
+            let (j, a, b) = nearest(q, d2);
+            if (a as f64) >= (ratio as f64).powi(2) * b as f64 {
+                continue;
+            }
+            if mutual && nearest(&d2[j], d1).0 != i {
+                continue;
+            }
+            out.push([i as u32, j as u32]);
+        }
+        out
+    }
+
+    #[test]
+    fn matches_agree_with_brute_force() {
+        // Image 2 holds noisy copies of 150 of image 1's 203 descriptors (shuffled) and 100
+        // unrelated ones: sizes not multiples of the tiles, so every tail path runs.
+        let d1 = random_descriptors(203, 1);
+        let mut rng = Lcg(2);
+        let mut d2 = random_descriptors(100, 3);
+        for d in d1.iter().take(150) {
+            d2.push(d.map(|v| (v as f64 + rng.range(-6.0, 6.0)).clamp(0.0, 255.0) as u8));
+        }
+        let mut order: Vec<usize> = (0..d2.len()).collect();
+        for i in (1..order.len()).rev() {
+            order.swap(i, (rng.uniform() * (i + 1) as f64) as usize);
+        }
+        let d2: Vec<Descriptor> = order.iter().map(|&i| d2[i]).collect();
+        for (ratio, mutual) in [(0.8, true), (0.8, false), (0.95, true), (0.6, false)] {
+            let config = MatchingConfig { ratio, mutual };
+            let fast = match_descriptors(&d1, &d2, &config);
+            assert_eq!(fast, brute_force(&d1, &d2, ratio, mutual), "{config:?}");
+        }
+        // The copies are found: all 150 survive ratio 0.8 with the mutual check.
+        let m = match_descriptors(&d1, &d2, &MatchingConfig::default());
+        let correct = m
+            .iter()
+            .filter(|[i, j]| order[*j as usize] >= 100 && order[*j as usize] - 100 == *i as usize)
+            .count();
+        assert_eq!(correct, 150);
+        assert_eq!(m.len(), 150);
+    }
+
+    #[test]
+    fn empty_and_tiny_sets() {
+        let d = random_descriptors(5, 1);
+        let c = MatchingConfig::default();
+        assert!(match_descriptors(&[], &d, &c).is_empty());
+        assert!(match_descriptors(&d, &[], &c).is_empty());
+        assert!(match_descriptors(&d, &d[..1], &c).is_empty());
+    }
+
+    #[test]
+    fn pair_selection() {
+        let f = |seed| Features {
+            width: 10,
+            height: 10,
+            root_sift: false,
+            keypoints: vec![Default::default(); 50],
+            descriptors: random_descriptors(50, seed),
+        };
+        let feats: Vec<Features> = (0..6).map(f).collect();
+        assert_eq!(select_pairs(&feats, PairSelection::Exhaustive).len(), 15);
+        assert_eq!(
+            select_pairs(&feats, PairSelection::Sequential { overlap: 2 }),
+            vec![
+                (0, 1),
+                (0, 2),
+                (1, 2),
+                (1, 3),
+                (2, 3),
+                (2, 4),
+                (3, 4),
+                (3, 5),
+                (4, 5)
+            ]
+        );
+        // Retrieval: image 5 is image 0's descriptors slightly perturbed; it must be image 0's
+        // first choice (top 1), and every image gets at least one partner.
+        let mut feats = feats;
+        feats[5].descriptors = feats[0]
+            .descriptors
+            .iter()
+            .map(|d| d.map(|v| v.saturating_add(2)))
+            .collect();
+        let p = select_pairs(&feats, PairSelection::Retrieval { top_k: 1 });
+        assert!(p.contains(&(0, 5)));
+        for i in 0..6 {
+            assert!(p.iter().any(|&(a, b)| a == i || b == i));
+        }
+    }
+}

@@ -1,0 +1,384 @@
+//! Geometric verification of an image pair, organised like COLMAP's two-view geometry
+//! estimation (Schönberger and Frahm 2016, "Structure-from-Motion Revisited", section 4.1):
+//! the putative matches are explained by a fundamental matrix (always), an essential matrix
+//! (when both focal lengths are measured priors) and a homography, each in the crate's RANSAC;
+//! the inlier counts then classify the pair:
+//!
+//! - calibrated: E explains nearly as many matches as F (`min_e_f_inlier_ratio`), so the
+//!   priors are right; the relative pose comes from E (most points in front), refined on the
+//!   Sampson distances of the E inliers (Cauchy loss, 1 px scale);
+//! - uncalibrated: F explains the matches but E does not (or there are no priors); a relative
+//!   pose is still derived from `E = K2ᵀ F K1` with the guessed intrinsics, for the mapper to
+//!   start from;
+//! - planar / panoramic: the homography explains more than `max_h_inlier_ratio` (0.8) of the
+//!   E (or F) inliers. With calibration, `K2⁻¹ H K1` of a pure rotation is a scaled rotation
+//!   (equal singular values); a plane seen from two centres gives `R + t nᵀ / d`, whose singular
+//!   values spread with the baseline-to-depth ratio. Without calibration the two cannot be told
+//!   apart (planar-or-panoramic);
+//! - degenerate: fewer than `min_inliers` (15) inliers for every model.
+
+use fresco_core::Rigid3;
+use nalgebra::{Matrix3, Point2, UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use crate::essential::{
+    EssentialEstimator, pose_from_essential, project_to_essential, refine_relative_pose,
+};
+use crate::focal_prior::FocalPrior;
+use crate::fundamental::FundamentalEstimator;
+use crate::homography::HomographyEstimator;
+use crate::ransac::{RansacConfig, RansacReport, ransac};
+use crate::two_view::{Correspondence, PairKind, TwoViewGeometry};
+
+/// Verification settings (defaults: COLMAP's `TwoViewGeometryOptions`).
+#[derive(Clone, Debug, Serialize)]
+pub struct VerificationConfig {
+    /// RANSAC threshold of every model, pixels (Sampson error for F and E, transfer error for
+    /// H). Default 4.
+    pub max_error_px: f64,
+    /// RANSAC confidence. Default 0.999.
+    pub confidence: f64,
+    /// Most RANSAC samples per model. Default 10000.
+    pub max_iterations: usize,
+    /// Fewest inliers of a verified pair. Default 15.
+    pub min_inliers: usize,
+    /// E inliers / F inliers at least this: the focal priors are right. Default 0.95.
+    pub min_e_f_inlier_ratio: f64,
+    /// H inliers / (E or F) inliers above this: the homography explains the pair. Default 0.8.
+    pub max_h_inlier_ratio: f64,
+    /// Smallest / largest singular value of `K2⁻¹ H K1` above this: a pure rotation (the
+    /// baseline is below about 1% of the plane's distance, nothing can be triangulated).
+    /// Default 0.99.
+    pub panoramic_singular_ratio: f64,
+    pub seed: u64,
+}
+
+impl Default for VerificationConfig {
+    fn default() -> Self {
+        VerificationConfig {
+            max_error_px: 4.0,
+            confidence: 0.999,
+            max_iterations: 10_000,
+            min_inliers: 15,
+            min_e_f_inlier_ratio: 0.95,
+            max_h_inlier_ratio: 0.8,
+            panoramic_singular_ratio: 0.99,
+            seed: 0,
+        }
+    }
+}
+
+/// The result of [`verify_pair`]: the geometry and the inlier count of each model.
+#[derive(Clone, Debug)]
+pub struct Verification {
+    pub geometry: TwoViewGeometry,
+    pub num_f_inliers: usize,
+    /// Zero when E was not estimated (no calibration).
+    pub num_e_inliers: usize,
+    pub num_h_inliers: usize,
+}
+
+/// Pinhole intrinsics of a focal prior.
+pub fn prior_matrix(prior: &FocalPrior) -> Matrix3<f64> {
+    Matrix3::new(
+        prior.focal_x,
+        0.0,
+        prior.cx,
+        0.0,
+        prior.focal_y,
+        prior.cy,
+        0.0,
+        0.0,
+        1.0,
+    )
+}
+
+/// `K⁻¹ x` of a pixel.
+pub fn normalise_pixel(prior: &FocalPrior, x: &Point2<f64>) -> Point2<f64> {
+    Point2::new(
+        (x.x - prior.cx) / prior.focal_x,
+        (x.y - prior.cy) / prior.focal_y,
+    )
+}
+
+/// Verifies the putative `matches` (`[keypoint in image 1, keypoint in image 2]`) between
+/// keypoints `x1` and `x2` (pixels) of two images with focal priors `prior1`, `prior2` (see the
+/// module documentation). Indices out of range are an error of the caller and are skipped.
+pub fn verify_pair(
+    x1: &[Point2<f64>],
+    x2: &[Point2<f64>],
+    matches: &[[u32; 2]],
+    prior1: &FocalPrior,
+    prior2: &FocalPrior,
+    config: &VerificationConfig,
+) -> Verification {
+    let matches: Vec<[u32; 2]> = matches
+        .iter()
+        .copied()
+        .filter(|m| (m[0] as usize) < x1.len() && (m[1] as usize) < x2.len())
+        .collect();
+    let degenerate = |f, e, h| Verification {
+        geometry: TwoViewGeometry::degenerate(),
+        num_f_inliers: f,
+        num_e_inliers: e,
+        num_h_inliers: h,
+    };
+    if matches.len() < config.min_inliers.max(8) {
+        return degenerate(0, 0, 0);
+    }
+    let pixels: Vec<Correspondence> = matches
+        .iter()
+        .map(|m| Correspondence {
+            x1: x1[m[0] as usize],
+            x2: x2[m[1] as usize],
+        })
+        .collect();
+    let normalised: Vec<Correspondence> = pixels
+        .iter()
+        .map(|c| Correspondence {
+            x1: normalise_pixel(prior1, &c.x1),
+            x2: normalise_pixel(prior2, &c.x2),
+        })
+        .collect();
+    let ransac_config = RansacConfig {
+        max_error: config.max_error_px,
+        confidence: config.confidence,
+        max_iterations: config.max_iterations,
+        seed: config.seed,
+        ..Default::default()
+    };
+    let count = |r: &Option<RansacReport<Matrix3<f64>>>| r.as_ref().map_or(0, |r| r.num_inliers);
+    let f = ransac(&FundamentalEstimator::default(), &pixels, &ransac_config).ok();
+    let h = ransac(&HomographyEstimator, &pixels, &ransac_config).ok();
+    let calibrated = prior1.source.is_prior() && prior2.source.is_prior();
+    let focal_px = 0.25 * (prior1.focal_x + prior1.focal_y + prior2.focal_x + prior2.focal_y);
+    let e = if calibrated {
+        ransac(
+            &EssentialEstimator { focal_px },
+            &normalised,
+            &ransac_config,
+        )
+        .ok()
+    } else {
+        None
+    };
+    let (nf, ne, nh) = (count(&f), count(&e), count(&h));
+    let min = config.min_inliers;
+    if nf < min && ne < min && nh < min {
+        return degenerate(nf, ne, nh);
+    }
+    let inliers_of = |r: &RansacReport<Matrix3<f64>>| -> Vec<[u32; 2]> {
+        r.inlier_indices().into_iter().map(|i| matches[i]).collect()
+    };
+    let k1 = prior_matrix(prior1);
+    let k2 = prior_matrix(prior2);
+    let mut geometry = TwoViewGeometry::degenerate();
+    geometry.fundamental = f.as_ref().map(|r| r.model);
+    geometry.homography = h.as_ref().map(|r| r.model);
+
+    let e_good = e
+        .as_ref()
+        .is_some_and(|_| ne >= min && ne as f64 >= config.min_e_f_inlier_ratio * nf as f64);
+    if let (true, Some(e)) = (e_good, e.as_ref()) {
+        geometry.essential = Some(e.model);
+        let e_inliers: Vec<Correspondence> = e
+            .inlier_indices()
+            .into_iter()
+            .map(|i| normalised[i])
+            .collect();
+        let pose = pose_from_essential(&e.model, &e_inliers)
+            .map(|p| refine_relative_pose(&p.0, &e_inliers, 1.0 / focal_px, 30));
+        if nh as f64 > config.max_h_inlier_ratio * ne as f64 {
+            let hn = k2.try_inverse().unwrap_or_else(Matrix3::identity)
+                * h.as_ref().map_or_else(Matrix3::identity, |r| r.model)
+                * k1;
+            match rotation_of_homography(&hn, config.panoramic_singular_ratio) {
+                Some(rotation) => {
+                    geometry.kind = PairKind::Panoramic;
+                    geometry.cam2_from_cam1 = Some(Rigid3::new(rotation, Vector3::zeros()));
+                }
+                None => {
+                    geometry.kind = PairKind::Planar;
+                    geometry.cam2_from_cam1 = pose;
+                }
+            }
+            geometry.inliers = h.as_ref().map(inliers_of).unwrap_or_default();
+        } else {
+            geometry.kind = PairKind::Calibrated;
+            geometry.cam2_from_cam1 = pose;
+            geometry.inliers = inliers_of(e);
+        }
+    } else if let Some(f) = f.as_ref().filter(|_| nf >= min) {
+        if nh as f64 > config.max_h_inlier_ratio * nf as f64 {
+            geometry.kind = PairKind::PlanarOrPanoramic;
+            geometry.inliers = h.as_ref().map(inliers_of).unwrap_or_default();
+        } else {
+            geometry.kind = PairKind::Uncalibrated;
+            geometry.inliers = inliers_of(f);
+            // The pose under the guessed intrinsics, for the mapper to start from.
+            if let Some(e) = project_to_essential(&(k2.transpose() * f.model * k1)) {
+                let f_inliers: Vec<Correspondence> = f
+                    .inlier_indices()
+                    .into_iter()
+                    .map(|i| normalised[i])
+                    .collect();
+                geometry.essential = Some(e);
+                geometry.cam2_from_cam1 = pose_from_essential(&e, &f_inliers).map(|p| p.0);
+            }
+        }
+    } else if let Some(h) = h.as_ref().filter(|_| nh >= min) {
+        // F failed but H holds: planar or rotating, as above.
+        geometry.kind = PairKind::PlanarOrPanoramic;
+        geometry.inliers = inliers_of(h);
+    } else {
+        return degenerate(nf, ne, nh);
+    }
+    if geometry.inliers.len() < min {
+        return degenerate(nf, ne, nh);
+    }
+    Verification {
+        geometry,
+        num_f_inliers: nf,
+        num_e_inliers: ne,
+        num_h_inliers: nh,
+    }
+}
+
+/// The rotation of a calibrated homography `K2⁻¹ H K1` if it is a scaled rotation (smallest
+/// over largest singular value above `min_ratio`): the closest rotation `U Vᵀ` (sign fixed so
+/// the determinant is +1).
+pub fn rotation_of_homography(hn: &Matrix3<f64>, min_ratio: f64) -> Option<UnitQuaternion<f64>> {
+    let svd = hn.svd(true, true);
+    let s = svd.singular_values;
+    if !(s[0] > 0.0 && s[2] / s[0] > min_ratio) {
+        return None;
+    }
+    let r = svd.u? * svd.v_t?;
+    let r = if r.determinant() < 0.0 { -r } else { r };
+    Some(UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(r),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::focal_prior::FocalSource;
+    use crate::fundamental::tests::{Lcg, Scene};
+
+    fn prior(source: FocalSource) -> FocalPrior {
+        FocalPrior {
+            focal_x: 800.0,
+            focal_y: 800.0,
+            cx: 320.0,
+            cy: 240.0,
+            source,
+        }
+    }
+
+    type Keypoints = (Vec<Point2<f64>>, Vec<Point2<f64>>, Vec<[u32; 2]>);
+
+    /// Keypoint lists and matches from a scene, with `outliers` random matches appended.
+    fn keypoints(scene: &Scene, outliers: usize) -> Keypoints {
+        let data = scene.pixels(0.5, 1);
+        let mut x1: Vec<_> = data.iter().map(|c| c.x1).collect();
+        let mut x2: Vec<_> = data.iter().map(|c| c.x2).collect();
+        let mut rng = Lcg(3);
+        for _ in 0..outliers {
+            x1.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
+            x2.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
+        }
+        let matches = (0..x1.len() as u32).map(|i| [i, i]).collect();
+        (x1, x2, matches)
+    }
+
+    #[test]
+    fn general_scene_with_priors_is_calibrated_with_the_right_pose() {
+        let scene = Scene::new(4, 200, false);
+        let (x1, x2, m) = keypoints(&scene, 60);
+        let p = prior(FocalSource::Exif35mm);
+        let v = verify_pair(&x1, &x2, &m, &p, &p, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::Calibrated);
+        let pose = v.geometry.cam2_from_cam1.unwrap();
+        // 0.5 px noise on 200 points: rotation good to ~0.05 deg; 0.3 deg of margin.
+        let err = pose
+            .rotation
+            .angle_to(&scene.cam2_from_cam1.rotation)
+            .to_degrees();
+        assert!(err < 0.3, "{err}");
+        // Inliers: the 200 true matches (4 px threshold vs 0.5 px noise) and at most a few
+        // random ones (an 8 px band in a 640x480 image: ~1.5% of 60).
+        let true_in = v.geometry.inliers.iter().filter(|m| m[0] < 200).count();
+        assert!(true_in >= 198, "{true_in}");
+        assert!(v.geometry.inliers.len() - true_in <= 4);
+    }
+
+    #[test]
+    fn without_priors_the_pair_is_uncalibrated() {
+        let scene = Scene::new(5, 200, false);
+        let (x1, x2, m) = keypoints(&scene, 30);
+        let p = prior(FocalSource::Default);
+        let v = verify_pair(&x1, &x2, &m, &p, &p, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::Uncalibrated);
+        assert_eq!(v.num_e_inliers, 0);
+        assert!(v.geometry.fundamental.is_some());
+        // The guessed K happens to be right here, so the derived pose is good too.
+        let err = v
+            .geometry
+            .cam2_from_cam1
+            .unwrap()
+            .rotation
+            .angle_to(&scene.cam2_from_cam1.rotation)
+            .to_degrees();
+        assert!(err < 0.5, "{err}");
+    }
+
+    #[test]
+    fn plane_and_rotation_are_told_apart() {
+        // A plane seen from two centres: planar.
+        let scene = Scene::new(6, 200, true);
+        let (x1, x2, m) = keypoints(&scene, 20);
+        let p = prior(FocalSource::CalibrationFile);
+        let v = verify_pair(&x1, &x2, &m, &p, &p, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::Planar);
+        // A rotating camera: panoramic, rotation recovered, zero translation.
+        let mut scene = Scene::new(7, 200, false);
+        scene.cam2_from_cam1.translation = Vector3::zeros();
+        let (x1, x2, m) = keypoints(&scene, 20);
+        let v = verify_pair(&x1, &x2, &m, &p, &p, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::Panoramic);
+        let pose = v.geometry.cam2_from_cam1.unwrap();
+        assert_eq!(pose.translation, Vector3::zeros());
+        assert!(pose.rotation.angle_to(&scene.cam2_from_cam1.rotation) < 0.2f64.to_radians());
+        // Without priors both are planar-or-panoramic.
+        let q = prior(FocalSource::Default);
+        let v = verify_pair(&x1, &x2, &m, &q, &q, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::PlanarOrPanoramic);
+    }
+
+    #[test]
+    fn random_matches_are_degenerate() {
+        let mut rng = Lcg(8);
+        let pts = |rng: &mut Lcg| -> Vec<Point2<f64>> {
+            (0..100)
+                .map(|_| Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)))
+                .collect()
+        };
+        let (x1, x2) = (pts(&mut rng), pts(&mut rng));
+        let m: Vec<[u32; 2]> = (0..100).map(|i| [i, i]).collect();
+        let p = prior(FocalSource::Exif35mm);
+        // Too few matches at all.
+        let v = verify_pair(&x1, &x2, &m[..10], &p, &p, &VerificationConfig::default());
+        assert_eq!(v.geometry.kind, PairKind::Degenerate);
+        // 100 random matches: F with a 4 px band can collect chance inliers (7-point models
+        // through 7 random points plus ~2.5% of the rest), but a homography with a 4 px disc
+        // cannot reach 15, and E must agree with F; the pair must not come out calibrated
+        // with a large inlier set.
+        let v = verify_pair(&x1, &x2, &m, &p, &p, &VerificationConfig::default());
+        assert!(
+            v.geometry.inliers.len() < 30,
+            "{}",
+            v.geometry.inliers.len()
+        );
+    }
+}
