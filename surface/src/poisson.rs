@@ -312,7 +312,34 @@ fn cell_key(u: [f64; 3], d: u32) -> u64 {
     octree::pack([c(u[0]), c(u[1]), c(u[2])])
 }
 
+/// Position of entry `(k, j)` of a symmetric 8x8 matrix packed by rows of its upper triangle
+/// (row `k` starts at `8 k - k (k - 1) / 2`).
+const PACK: [[usize; 8]; 8] = {
+    let mut t = [[0usize; 8]; 8];
+    let mut k = 0;
+    while k < 8 {
+        let mut j = 0;
+        while j < 8 {
+            let (a, b) = if k <= j { (k, j) } else { (j, k) };
+            t[k][j] = 8 * a - a * (a + 1) / 2 + b;
+            j += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
+#[inline]
+fn packed(k: usize, j: usize) -> usize {
+    PACK[k][j]
+}
+
 /// One level's operator `h L + alpha S` restricted to its active vertices.
+///
+/// The screening matrix is kept per sample cell: `M_c = alpha sum_{p in c} A_p w(p) w(p)^T`
+/// over the cell's 8 corner hats (an 8x8 symmetric block), so a product costs one pass over
+/// the cells (far fewer than samples on coarse levels) and a parallel gather at the vertices
+/// through their (up to 8) incident sample cells, with no scattered writes.
 struct LevelSystem<'a> {
     level: &'a Level,
     /// Active vertex x 27 ring offsets -> node index (active or ghost) or MISSING.
@@ -320,13 +347,67 @@ struct LevelSystem<'a> {
     /// `h L` interior stencil (27 entries, `octree::ring27` order).
     stencil: [f64; 27],
     h: f64,
-    alpha: f64,
-    samples: &'a [[f64; 3]],
-    area: &'a [f64],
-    ls: LevelSamples,
+    /// Sample cell x 8 corners -> active vertex index.
+    cell_corners: Vec<u32>,
+    /// Packed `M_c` per sample cell (36 entries).
+    cell_matrix: Vec<[f64; 36]>,
+    /// Active vertex x 8: the sample cell having the vertex as corner `k` (or MISSING).
+    incident: Vec<u32>,
 }
 
-impl LevelSystem<'_> {
+impl<'a> LevelSystem<'a> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        level: &'a Level,
+        cells: &SortedKeys,
+        samples: &[[f64; 3]],
+        sample_keys: &[u64],
+        area: &[f64],
+        alpha: f64,
+        ring_offsets: &[[i32; 3]],
+    ) -> LevelSystem<'a> {
+        let d = level.depth;
+        let h = 1.0 / (1u64 << d) as f64;
+        let mut stencil = [0.0; 27];
+        for (o, off) in ring_offsets.iter().enumerate() {
+            stencil[o] = h * bspline::laplacian_entry([1, 1, 1], *off, 1 << 20);
+        }
+        let cell_corners = level.lookup_from(cells, Map::Same, &octree::corners8());
+        debug_assert!(cell_corners.iter().all(|&c| c != MISSING));
+        let cell_of: Vec<u32> = sample_keys
+            .par_iter()
+            .map(|&k| cells.find(k).expect("sample cell indexed") as u32)
+            .collect();
+        let mut cell_matrix = vec![[0.0f64; 36]; cells.len()];
+        if alpha > 0.0 {
+            for (s, &c) in cell_of.iter().enumerate() {
+                let w = cell_weights(samples[s], d);
+                let m = &mut cell_matrix[c as usize];
+                let f = alpha * area[s];
+                for k in 0..8 {
+                    for j in k..8 {
+                        m[packed(k, j)] += f * w[k] * w[j];
+                    }
+                }
+            }
+        }
+        // Vertex v is corner k = (ox, oy, oz) of the cell v - (ox, oy, oz).
+        let neg: Vec<[i32; 3]> = octree::corners8()
+            .iter()
+            .map(|o| [-o[0], -o[1], -o[2]])
+            .collect();
+        let incident = octree::lookup(&level.active, cells, Map::Same, &neg);
+        LevelSystem {
+            level,
+            ring: level.lookup_from(&level.active, Map::Same, ring_offsets),
+            stencil,
+            h,
+            cell_corners,
+            cell_matrix,
+            incident,
+        }
+    }
+
     fn laplacian_row(&self, i: usize, x: &[f64], include_ghosts: bool) -> f64 {
         let na = self.level.active_len();
         let row = &self.ring[i * 27..i * 27 + 27];
@@ -349,58 +430,69 @@ impl LevelSystem<'_> {
         s
     }
 
-    /// `out = (h L + alpha S) x` over the active vertices; `x` has the active length
-    /// (ghost unknowns are zero in the solve).
-    fn apply(&self, x: &[f64], out: &mut [f64]) {
-        out.par_iter_mut()
+    /// `M_c x_c` for every sample cell (8 values per cell).
+    fn cell_products(&self, x: &[f64]) -> Vec<[f64; 8]> {
+        self.cell_matrix
+            .par_iter()
             .enumerate()
-            .with_min_len(1024)
-            .for_each(|(i, o)| *o = self.laplacian_row(i, x, false));
-        if self.alpha > 0.0 {
-            let vals = self.sample_values(x);
-            for (s, v) in vals.iter().enumerate() {
-                let w = cell_weights(self.samples[s], self.level.depth);
-                let f = self.alpha * self.area[s] * v;
-                for (k, &c) in self.ls.corners_of(s).iter().enumerate() {
-                    out[c as usize] += f * w[k];
+            .with_min_len(512)
+            .map(|(c, m)| {
+                let corners = &self.cell_corners[c * 8..c * 8 + 8];
+                let mut xc = [0.0; 8];
+                for k in 0..8 {
+                    xc[k] = x[corners[k] as usize];
                 }
-            }
-        }
-    }
-
-    /// The function `sum_j x_j B_j` at every sample (corner nodes beyond `x` count as 0).
-    fn sample_values(&self, x: &[f64]) -> Vec<f64> {
-        (0..self.samples.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|s| {
-                let w = cell_weights(self.samples[s], self.level.depth);
-                self.ls
-                    .corners_of(s)
-                    .iter()
-                    .zip(w.iter())
-                    .map(|(&c, w)| x.get(c as usize).copied().unwrap_or(0.0) * w)
-                    .sum()
+                let mut u = [0.0; 8];
+                for k in 0..8 {
+                    let mut s = 0.0;
+                    for j in 0..8 {
+                        s += m[packed(k, j)] * xc[j];
+                    }
+                    u[k] = s;
+                }
+                u
             })
             .collect()
     }
 
+    #[inline]
+    fn screening_row(&self, i: usize, u: &[[f64; 8]]) -> f64 {
+        let mut s = 0.0;
+        for (k, &c) in self.incident[i * 8..i * 8 + 8].iter().enumerate() {
+            if c != MISSING {
+                s += u[c as usize][k];
+            }
+        }
+        s
+    }
+
+    /// `out = (h L + alpha S) x` over the active vertices; `x` has the active length
+    /// (ghost unknowns are zero in the solve), or the full length with `include_ghosts`.
+    fn apply(&self, x: &[f64], out: &mut [f64], include_ghosts: bool) {
+        let u = self.cell_products(x);
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(i, o)| {
+                *o = self.laplacian_row(i, x, include_ghosts) + self.screening_row(i, &u)
+            });
+    }
+
     fn diagonal(&self) -> Vec<f64> {
         let n = self.level.n();
-        let mut d: Vec<f64> = (0..self.level.active_len())
+        (0..self.level.active_len())
             .into_par_iter()
             .map(|i| {
                 let c = octree::unpack(self.level.active.keys[i]);
-                self.h * bspline::laplacian_entry(c, [0, 0, 0], n)
+                let mut d = self.h * bspline::laplacian_entry(c, [0, 0, 0], n);
+                for (k, &cell) in self.incident[i * 8..i * 8 + 8].iter().enumerate() {
+                    if cell != MISSING {
+                        d += self.cell_matrix[cell as usize][packed(k, k)];
+                    }
+                }
+                d
             })
-            .collect();
-        for s in 0..self.samples.len() {
-            let w = cell_weights(self.samples[s], self.level.depth);
-            for (k, &c) in self.ls.corners_of(s).iter().enumerate() {
-                d[c as usize] += self.alpha * self.area[s] * w[k] * w[k];
-            }
-        }
-        d
+            .collect()
     }
 }
 
@@ -582,7 +674,6 @@ pub fn reconstruct(
     let mut level_stats = Vec::with_capacity(depth as usize + 1);
     for d in 0..=depth {
         let level = &levels[d as usize];
-        let h = 1.0 / (1u64 << d) as f64;
         let alpha = cfg.point_weight * (1u64 << d) as f64;
         // z = P y_{d-1} on all of the level's nodes.
         let mut z = vec![0.0; level.len()];
@@ -615,35 +706,21 @@ pub fn reconstruct(
             }
         }
         let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
-        let ls = LevelSamples::new(level, &cells[d as usize], &sample_keys);
-        let mut stencil = [0.0; 27];
-        for (o, off) in ring.iter().enumerate() {
-            stencil[o] = h * bspline::laplacian_entry([1, 1, 1], *off, 1 << 20);
-        }
-        let sys = LevelSystem {
+        let sys = LevelSystem::new(
             level,
-            ring: level.lookup_from(&level.active, Map::Same, &ring),
-            stencil,
-            h,
+            &cells[d as usize],
+            &samples,
+            &sample_keys,
+            &area,
             alpha,
-            samples: &samples,
-            area: &area,
-            ls,
-        };
+            &ring,
+        );
         // r = b - (h L + alpha S) z over the active vertices (ghost z included).
-        let mut r: Vec<f64> = (0..level.active_len())
-            .into_par_iter()
-            .map(|i| rhs[d as usize][i] - sys.laplacian_row(i, &z, true))
-            .collect();
-        if alpha > 0.0 {
-            let fz = sys.sample_values(&z);
-            for (s, f) in fz.iter().enumerate() {
-                let w = cell_weights(samples[s], d);
-                for (k, &c) in sys.ls.corners_of(s).iter().enumerate() {
-                    r[c as usize] -= alpha * area[s] * f * w[k];
-                }
-            }
-        }
+        let mut r = vec![0.0; level.active_len()];
+        sys.apply(&z, &mut r, true);
+        r.par_iter_mut()
+            .zip(rhs[d as usize].par_iter())
+            .for_each(|(ri, bi)| *ri = bi - *ri);
         let diag = sys.diagonal();
         let mut x = vec![0.0; level.active_len()];
         let iters = if level.full {
@@ -652,7 +729,7 @@ pub fn reconstruct(
             cfg.cg_iterations
         };
         let report = solver::conjugate_gradient(
-            &|v: &[f64], out: &mut [f64]| sys.apply(v, out),
+            &|v: &[f64], out: &mut [f64]| sys.apply(v, out, false),
             &diag,
             &r,
             &mut x,
