@@ -2,6 +2,8 @@
 //!
 //! - [`shapes`]: closed test shapes with known genus (sphere, torus, double torus, blob, temple).
 //! - [`large_mesh`]: huge subdivided, displaced spheres streamed to PLY (pst benchmarks).
+//! - [`point_clouds`]: oriented points sampled from a mesh ([`sample_points`]) with noise,
+//!   holes and outliers, for surface reconstruction tests.
 //! - [`albedo`]: a UV-free procedural albedo over 3D positions ([`Albedo`]).
 //! - [`synthetic`]: synthetic scenes with exact ground truth: [`build_scene`], [`render_view`],
 //!   [`write_dataset`] (photos, masks, COLMAP and Middlebury cameras, PLY/GLB mesh).
@@ -10,11 +12,13 @@
 
 pub mod albedo;
 pub mod large_mesh;
+pub mod point_clouds;
 pub mod real;
 pub mod shapes;
 pub mod synthetic;
 
 pub use albedo::Albedo;
+pub use point_clouds::{OrientedPoints, SampleConfig, SampleError, sample_points};
 pub use real::{sceaux_castle, temple_sparse_ring};
 pub use shapes::Shape;
 pub use synthetic::{

@@ -8,12 +8,23 @@
 //! sampling density) with [`PoissonConfig`]; built from `octree.rs` (sparse band levels),
 //! `bspline.rs` (degree-1 basis), `poisson.rs` (system, cascadic solve), `solver.rs` (CG)
 //! and `isosurface.rs` (crack-free marching cubes).
+//!
+//! - `normals.rs`: [`normals::estimate_normals`] (PCA) and [`normals::orient_normals`] (MST, Hoppe 92).
+//! - `trim.rs`: [`trim::trim_by_density`] (PoissonRecon's SurfaceTrimmer: clip at a density, drop islands).
+//! - `cleanup.rs`: [`cleanup::cleanup`] (weld, degenerate/duplicate faces, non-manifold repair, small parts).
+//! - `decimate.rs`: [`decimate::decimate`] (Garland–Heckbert quadric edge collapse, boundaries kept).
+//! - `metrics.rs`: [`metrics::mesh_distance`], [`metrics::point_set_distance`] (Chamfer, Hausdorff, F-score).
 
 pub mod bspline;
+pub mod cleanup;
+pub mod decimate;
 pub mod isosurface;
+pub mod metrics;
+pub mod normals;
 pub mod octree;
 pub mod poisson;
 pub mod solver;
+pub mod trim;
 
 pub use poisson::{
     LevelStats, PoissonConfig, PoissonError, PoissonOutput, PoissonStats, reconstruct,
