@@ -1,7 +1,8 @@
 //! Feature identification (paper 003 section 4.1, after ZMT05 section 4.2): cut the
 //! protrusions off the body of the shape.
 //!
-//! For each tip `p` (a leaf of the Reeb graph at an AGD maximum):
+//! For each tip `p` (a leaf of the Reeb graph at an AGD maximum; maxima within half an AGD
+//! radius of a higher tip are skipped as part of the same protrusion):
 //! 1. `f_p(q) = g(p, q)`, the geodesic distance from the tip, is normalised to `x ∈ [0, 1]`
 //!    over the range the region growing examines: `x = g / (isovalue · r)`, where `r` is the
 //!    smallest raw AGD of the component (the mean geodesic distance from its centre — a
@@ -125,6 +126,7 @@ pub fn find_features(
     let k = params.bands.max(4);
     let extent = params.isovalue * radius;
     let mut taken = vec![false; faces.len()];
+    let mut suppressed = vec![false; positions.len()];
     let mut features = Vec::new();
     let crossable = |f: u32, h: u32| {
         let fv = faces[f as usize];
@@ -141,7 +143,19 @@ pub fn find_features(
         if start.is_empty() || extent.is_nan() || extent <= 0.0 {
             continue;
         }
-        let d = graph.distances(&[tip], params.method);
+        if suppressed[tip as usize] {
+            continue;
+        }
+        // Beyond the examined extent nothing is needed; the margin keeps the bands near
+        // x = 1 exact.
+        let d = graph.distances_within(&[tip], params.method, 1.01 * extent);
+        // Lower maxima close to this tip are the same protrusion (or noise on a flat
+        // top): skip them (non-maximum suppression within half the AGD radius).
+        for (v, &dv) in d.iter().enumerate() {
+            if dv < 0.5 * radius {
+                suppressed[v] = true;
+            }
+        }
         let band = |f: u32| -> usize {
             let x = faces[f as usize]
                 .iter()

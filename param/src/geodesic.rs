@@ -171,6 +171,13 @@ impl<'a> SurfaceGraph<'a> {
     /// Geodesic distance from the nearest of `sources` to every vertex (`f64::INFINITY`
     /// where unreachable).
     pub fn distances(&self, sources: &[u32], method: Method) -> Vec<f64> {
+        self.distances_within(sources, method, f64::INFINITY)
+    }
+
+    /// [`SurfaceGraph::distances`] with the front stopped at `limit`: vertices farther
+    /// away keep a value above `limit` (possibly infinity). The cost is that of the region
+    /// inside the limit.
+    pub fn distances_within(&self, sources: &[u32], method: Method, limit: f64) -> Vec<f64> {
         let mut dist = vec![f64::INFINITY; self.vertex_count()];
         let mut done = vec![false; self.vertex_count()];
         let mut heap = BinaryHeap::new();
@@ -181,6 +188,9 @@ impl<'a> SurfaceGraph<'a> {
         while let Some(Entry(d, v)) = heap.pop() {
             if done[v as usize] || d > dist[v as usize] {
                 continue;
+            }
+            if d > limit {
+                break;
             }
             done[v as usize] = true;
             for (w, len) in self.neighbours(v) {
@@ -394,6 +404,21 @@ mod tests {
         // (no straight diagonal run), bounded below by the straight line.
         assert!(d[far as usize] >= 6.0 * 2f64.sqrt() - 1e-9);
         assert!(d[far as usize] <= 12.0);
+    }
+
+    #[test]
+    fn bounded_front_is_exact_inside_its_limit() {
+        let (p, f) = grid(30);
+        let g = SurfaceGraph::new(&p, &f);
+        let full = g.distances(&[0], Method::FastMarching);
+        let part = g.distances_within(&[0], Method::FastMarching, 10.0);
+        for v in 0..p.len() {
+            if full[v] <= 10.0 {
+                assert_eq!(part[v], full[v]);
+            } else {
+                assert!(part[v] > 10.0);
+            }
+        }
     }
 
     #[test]
