@@ -4,9 +4,11 @@
 //! Every subcommand returns a JSON summary; `--json` prints it on stdout, otherwise a short
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
+mod eval;
 mod matching;
 mod progress;
 mod pst;
+mod sfm;
 mod synth;
 
 use std::process::ExitCode;
@@ -45,6 +47,10 @@ enum Command {
     Pst(pst::PstArgs),
     /// Match the features of a workspace's images and verify the pairs' two-view geometry.
     Match(matching::MatchArgs),
+    /// Cameras and a sparse point cloud from a workspace's features and matches.
+    Sfm(sfm::SfmArgs),
+    /// Measure results against ground truth or a reference (poses).
+    Eval(eval::EvalArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -72,6 +78,8 @@ fn main() -> ExitCode {
         Command::Synth(args) => synth::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
+        Command::Sfm(args) => sfm::run(args, &ctx),
+        Command::Eval(args) => eval::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

@@ -36,6 +36,10 @@
 //! - `focal_prior.rs`: [`focal_prior::focal_from_exif`], [`focal_prior::read_calibration_file`].
 //! - `workspace.rs`: the folder layout and its readers [`workspace::read_images`],
 //!   [`workspace::read_features`], [`workspace::read_matches`].
+//! - `reconstruct.rs`: the stage over a workspace: [`reconstruct::load_mapper_input`] (images,
+//!   features, matches, cameras from focal priors, keypoint colours), [`reconstruct::run_sfm`]
+//!   (map, optional silhouettes, `sparse/<k>` COLMAP models and `sparse/points.ply`),
+//!   [`reconstruct::read_reference`] for pose evaluation.
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
@@ -51,6 +55,7 @@ pub mod match_file;
 pub mod matching;
 pub mod pnp;
 pub mod ransac;
+pub mod reconstruct;
 pub mod silhouette;
 pub mod synthetic;
 pub mod tracks;

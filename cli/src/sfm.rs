@@ -1,0 +1,59 @@
+//! `fresco sfm <ws>`: incremental mapping and bundle adjustment on a workspace that
+//! `fresco features` and `fresco match` filled; writes `<ws>/sparse/0` (COLMAP text, further
+//! models `sparse/1`, ...) and `<ws>/sparse/points.ply`. See `fresco_sfm::reconstruct`.
+
+use std::path::PathBuf;
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+use fresco_core::CameraModel;
+use fresco_sfm::reconstruct::{CameraMode, SfmConfig, run_sfm};
+
+#[derive(Args, Debug)]
+pub struct SfmArgs {
+    /// Workspace folder (images.json, features/, matches/).
+    pub workspace: PathBuf,
+    /// Folder of object masks (<image name>.png or <stem>.png): silhouette constraints join
+    /// the bundle adjustment of the main model.
+    #[arg(long)]
+    pub masks: Option<PathBuf>,
+    /// Camera model: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV.
+    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    pub camera_model: String,
+    /// One camera (intrinsics) shared by all photos.
+    #[arg(long, conflicts_with = "per_image_camera")]
+    pub single_camera: bool,
+    /// One camera per photo (default: photos of the same size, camera and focal prior share one).
+    #[arg(long)]
+    pub per_image_camera: bool,
+    /// Fewest verified inliers of the initial pair.
+    #[arg(long, default_value_t = 100)]
+    pub init_min_inliers: usize,
+}
+
+pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
+    let camera_model = match CameraModel::from_name(&args.camera_model.to_ascii_uppercase()) {
+        Ok(m) => m,
+        Err(_) => bail!(
+            "unknown camera model `{}`; choose SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV",
+            args.camera_model
+        ),
+    };
+    let mut config = SfmConfig {
+        camera_model,
+        camera_mode: if args.single_camera {
+            CameraMode::Single
+        } else if args.per_image_camera {
+            CameraMode::PerImage
+        } else {
+            CameraMode::Auto
+        },
+        masks: args.masks.clone(),
+        ..Default::default()
+    };
+    config.mapper.init_min_inliers = args.init_min_inliers;
+    let bars = crate::progress::Bars::new(ctx);
+    let summary = run_sfm(&args.workspace, &config, &bars)
+        .with_context(|| format!("sfm on {}", args.workspace.display()))?;
+    Ok(serde_json::to_value(summary)?)
+}
