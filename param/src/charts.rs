@@ -375,12 +375,16 @@ fn make_discs(
     Ok(done)
 }
 
-/// Charts smaller than this fraction of their component's area try to join a neighbour.
+/// Charts smaller than this fraction of their component's area, or with fewer faces than
+/// [`SMALL_CHART_FACES`], try to join a neighbour. The face count matters on coarse
+/// components (a column of 64 faces): a median split across a single row of triangles
+/// alternates sides and leaves single triangles.
 const SMALL_CHART_FRACTION: f64 = 0.01;
+const SMALL_CHART_FACES: usize = 16;
 
 /// Median splits can leave slivers (a few faces cut off between two boundary loops): each
-/// chart smaller than [`SMALL_CHART_FRACTION`] of the component joins the neighbouring
-/// chart it shares most edges with, among those where the union is still a disc.
+/// small chart (see [`SMALL_CHART_FRACTION`]) joins the neighbouring chart it shares most
+/// edges with, among those where the union is still a disc; smallest first, two rounds.
 fn merge_small(
     positions: &[Point3<f64>],
     faces: &[[u32; 3]],
@@ -405,11 +409,11 @@ fn merge_small(
         let (x, y) = (charts[a].as_ref().unwrap(), charts[b].as_ref().unwrap());
         chart_area(x).total_cmp(&chart_area(y))
     });
-    for i in order {
+    for i in order.iter().copied().chain(order.iter().copied()) {
         let Some(small) = charts[i].clone() else {
             continue;
         };
-        if chart_area(&small) >= SMALL_CHART_FRACTION * total {
+        if chart_area(&small) >= SMALL_CHART_FRACTION * total && small.len() >= SMALL_CHART_FACES {
             continue;
         }
         let mut shared: std::collections::HashMap<u32, usize> = Default::default();

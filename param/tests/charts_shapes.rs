@@ -93,8 +93,14 @@ fn temple_every_component_charted() {
     let (mesh, c) = run(Shape::Temple);
     let comps = Topology::build(&mesh).unwrap().components().len() as u32;
     assert_eq!(c.genus_before, 0);
-    // Each closed component needs at least two discs.
+    // Each closed component needs at least two discs; the coarse columns (64 faces) must
+    // not fall apart into single triangles either: a few discs per component at most.
     assert!(c.count >= 2 * comps);
+    assert!(
+        c.count <= 6 * comps,
+        "{} charts for {comps} components",
+        c.count
+    );
 }
 
 #[test]
