@@ -1,7 +1,8 @@
 //! Times `fresco_surface::reconstruct` on a point cloud sampled from a test shape.
 //!
 //! `cargo run --release -p fresco-surface --example poisson_bench -- [shape] [points] [depth]
-//! [repeats] [--points-out cloud.ply] [--mesh-out mesh.ply]`
+//! [repeats] [--points-out cloud.ply] [--gt-out shape.ply] [--mesh-out mesh.ply]
+//! [--full-depth d] [--point-weight w]`
 //! (defaults: sphere 200000 9 3). Prints one line per run with the phase timings, and can
 //! write the oriented cloud (for running Open3D on the same input) and the mesh.
 
@@ -23,6 +24,7 @@ fn main() {
     };
     let points_out = take("--points-out");
     let mesh_out = take("--mesh-out");
+    let gt_out = take("--gt-out");
     let full_depth: Option<u32> = take("--full-depth").map(|s| s.parse().unwrap());
     let point_weight: Option<f64> = take("--point-weight").map(|s| s.parse().unwrap());
     let shape = args
@@ -35,6 +37,9 @@ fn main() {
 
     let gt = shape.mesh(4);
     let (points, normals) = sample(&gt, n, 7);
+    if let Some(path) = &gt_out {
+        write_mesh(path, &gt, PlyFormat::BinaryLittleEndian).expect("write ground truth");
+    }
     if let Some(path) = &points_out {
         let mut cloud = Mesh::from_triangles(points.clone(), Vec::new());
         cloud.normals = Some(normals.clone());

@@ -144,6 +144,12 @@ pub enum PoissonError {
     InvalidConfig(String),
 }
 
+/// Samples are splatted one level coarser than their density depth: the trilinear splat is
+/// narrower than PoissonRecon's quadratic one, and at the density depth itself the normal
+/// field stays grainy. Measured on a 200k-sample sphere at depth 8: radial error std
+/// 1.47e-4 at offset 0, 1.01e-4 at offset 1 (Open3D: 0.66e-4).
+const SPLAT_DEPTH_OFFSET: f64 = 1.0;
+
 /// Smallest number of samples accepted.
 const MIN_SAMPLES: usize = 10;
 
@@ -365,6 +371,7 @@ impl<'a> LevelSystem<'a> {
         area: &[f64],
         alpha: f64,
         ring_offsets: &[[i32; 3]],
+        ring: Option<Vec<u32>>,
     ) -> LevelSystem<'a> {
         let d = level.depth;
         let h = 1.0 / (1u64 << d) as f64;
@@ -399,7 +406,7 @@ impl<'a> LevelSystem<'a> {
         let incident = octree::lookup(&level.active, cells, Map::Same, &neg);
         LevelSystem {
             level,
-            ring: level.lookup_from(&level.active, Map::Same, ring_offsets),
+            ring: ring.unwrap_or_else(|| level.lookup_from(&level.active, Map::Same, ring_offsets)),
             stencil,
             h,
             cell_corners,
@@ -601,54 +608,106 @@ pub fn reconstruct(
     let seconds_octree = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
 
-    // Right-hand side at the finest depth: b_i = int grad B_i . V, with V's coefficients
-    // V_c = sum_p A_p n_p B_c(p) / h^3 (unit-integral splat). V lives on the corners of the
-    // sample cells, so b is supported in S_D (corners + one ring) and computed exactly there.
+    // The normal field V = sum_l V_l. Each sample is splatted at its density depth
+    // t_p = log4(sigma_p / samples_per_node) (the depth at which a node holds
+    // `samples_per_node` samples; PoissonRecon's adaptive splatting) minus
+    // SPLAT_DEPTH_OFFSET, linearly split between
+    // floor(t_p) and floor(t_p) + 1 so that V changes smoothly with the density. Splatting
+    // sparse samples at the finest depth would make V a field of isolated spikes and the
+    // surface bumpy (measured: 2.5x the Chamfer error of splatting at the density depth).
+    // V_l's coefficients in level l's hats: sum_p omega_{p,l} A_p n_p B_c(p) / h_l^3
+    // (unit-integral splat, so int V = sum_p A_p n_p).
     let finest = &levels[depth as usize];
     let ring = octree::ring27();
-    let mut rhs: Vec<Vec<f64>> = vec![Vec::new(); depth as usize + 1];
-    {
-        let sample_keys: Vec<u64> = order.iter().map(|o| o.0).collect();
-        let ls = LevelSamples::new(finest, &cells[depth as usize], &sample_keys);
-        let mut vsum = vec![[0.0f64; 3]; finest.len()];
-        for s in 0..samples.len() {
-            let w = cell_weights(samples[s], depth);
-            for (k, &c) in ls.corners_of(s).iter().enumerate() {
-                for a in 0..3 {
-                    vsum[c as usize][a] += area[s] * snormals[s][a] * w[k];
+    let corners = octree::corners8();
+    let splat_depth: Vec<f64> = area
+        .par_iter()
+        .map(|&a| {
+            (0.5 * (1.0 / (a * cfg.samples_per_node)).log2() - SPLAT_DEPTH_OFFSET)
+                .clamp(0.0, depth as f64)
+        })
+        .collect();
+    let splat_weight = |s: usize, l: u32| -> f64 {
+        let t = splat_depth[s];
+        let d0 = t.floor() as u32;
+        let f = t - d0 as f64;
+        if l == d0 {
+            if l == depth { 1.0 } else { 1.0 - f }
+        } else if l == d0 + 1 {
+            f
+        } else {
+            0.0
+        }
+    };
+    let vcoef: Vec<Vec<[f64; 3]>> = (0..=depth)
+        .map(|l| {
+            let level = &levels[l as usize];
+            let h = 1.0 / (1u64 << l) as f64;
+            let used: Vec<usize> = (0..samples.len())
+                .filter(|&s| splat_weight(s, l) > 0.0)
+                .collect();
+            if used.is_empty() {
+                return Vec::new();
+            }
+            let keys: Vec<u64> = used.iter().map(|&s| cell_key(samples[s], l)).collect();
+            let ls = LevelSamples::new(level, &cells[l as usize], &keys);
+            let mut v = vec![[0.0f64; 3]; level.len()];
+            for (i, &s) in used.iter().enumerate() {
+                let f = splat_weight(s, l) * area[s] / (h * h * h);
+                let w = cell_weights(samples[s], l);
+                for (k, &c) in ls.corners_of(i).iter().enumerate() {
+                    for a in 0..3 {
+                        v[c as usize][a] += f * snormals[s][a] * w[k];
+                    }
                 }
             }
+            v
+        })
+        .collect();
+    // b_d = int grad B_d . V = (part from V_{<=d}) + (part from V_{>d}). The first is the
+    // divergence stencil applied to W_d, V_{<=d} prolonged exactly onto level d (in the
+    // solve below); the second, c_d, is restricted from the finer levels' own parts:
+    // c_{d-1} = R (c_d + f_d), f_d = int grad B_d . V_d, which is supported in S_d (V_d lives
+    // on sample-cell corners), so the restriction is exact.
+    let div_row = |level: &Level, table: &[u32], i: usize, w: &[[f64; 3]]| -> f64 {
+        let c = octree::unpack(level.active.keys[i]);
+        let n = level.n();
+        let h = 1.0 / n as f64;
+        let mut s = 0.0;
+        for (o, off) in ring.iter().enumerate() {
+            let j = table[i * 27 + o];
+            if j == MISSING || w.is_empty() {
+                continue;
+            }
+            let dv = bspline::divergence_entry(c, *off, n);
+            let v = w[j as usize];
+            s += dv[0] * v[0] + dv[1] * v[1] + dv[2] * v[2];
         }
-        // int grad B_i . V = sum_o (h^2 divergence_entry) . vsum / h^3.
-        let h = 1.0 / (1u64 << depth) as f64;
-        let n = finest.n();
-        let table = finest.lookup_from(&finest.active, Map::Same, &ring);
-        rhs[depth as usize] = (0..finest.active_len())
-            .into_par_iter()
-            .map(|i| {
-                let c = octree::unpack(finest.active.keys[i]);
-                let mut s = 0.0;
-                for (o, off) in ring.iter().enumerate() {
-                    let j = table[i * 27 + o];
-                    if j == MISSING {
-                        continue;
-                    }
-                    let dv = bspline::divergence_entry(c, *off, n);
-                    let v = vsum[j as usize];
-                    s += dv[0] * v[0] + dv[1] * v[1] + dv[2] * v[2];
-                }
-                s / h
-            })
-            .collect();
-    }
-    // Restriction to coarser levels: b_{d-1, j} = sum_e w(e) b_{d, 2j + e}, the two-scale
-    // relation applied to the test functions (b is supported in S at every level).
-    for d in (0..depth as usize).rev() {
-        let (coarse, fine) = (&levels[d], &levels[d + 1]);
-        let table = fine.lookup_from(&coarse.active, Map::ToFine, &ring);
-        let bf = &rhs[d + 1];
-        let nf = fine.active_len();
-        rhs[d] = (0..coarse.active_len())
+        s * h * h
+    };
+    // The finest level's neighbour table, built once for the right-hand side and the solve.
+    let mut finest_ring = Some(finest.lookup_from(&finest.active, Map::Same, &ring));
+    let mut finer_part: Vec<Vec<f64>> = vec![Vec::new(); depth as usize + 1];
+    finer_part[depth as usize] = vec![0.0; finest.active_len()];
+    for l in (1..=depth as usize).rev() {
+        let level = &levels[l];
+        let mut acc = finer_part[l].clone();
+        if !vcoef[l].is_empty() {
+            let own_table;
+            let table: &[u32] = if l == depth as usize {
+                finest_ring.as_ref().expect("built above")
+            } else {
+                own_table = level.lookup_from(&level.active, Map::Same, &ring);
+                &own_table
+            };
+            acc.par_iter_mut()
+                .enumerate()
+                .for_each(|(i, a)| *a += div_row(level, table, i, &vcoef[l]));
+        }
+        let coarse = &levels[l - 1];
+        let table = level.lookup_from(&coarse.active, Map::ToFine, &ring);
+        let nf = level.active_len();
+        finer_part[l - 1] = (0..coarse.active_len())
             .into_par_iter()
             .map(|j| {
                 let mut s = 0.0;
@@ -660,7 +719,7 @@ pub fn reconstruct(
                     let w = bspline::restriction_weight(off[0])
                         * bspline::restriction_weight(off[1])
                         * bspline::restriction_weight(off[2]);
-                    s += w * bf[k as usize];
+                    s += w * acc[k as usize];
                 }
                 s
             })
@@ -669,14 +728,15 @@ pub fn reconstruct(
 
     // Cascadic solve, coarse to fine.
     progress.begin("poisson: solving", depth as u64 + 1);
-    let corners = octree::corners8();
+    let mut w_prev: Vec<[f64; 3]> = Vec::new();
     let mut ys: Vec<Vec<f64>> = Vec::with_capacity(depth as usize + 1);
     let mut level_stats = Vec::with_capacity(depth as usize + 1);
     for d in 0..=depth {
         let level = &levels[d as usize];
         let alpha = cfg.point_weight * (1u64 << d) as f64;
-        // z = P y_{d-1} on all of the level's nodes.
+        // z = P y_{d-1} and W_d = P W_{d-1} + V_d on all of the level's nodes.
         let mut z = vec![0.0; level.len()];
+        let mut wd = vec![[0.0f64; 3]; level.len()];
         if d > 0 {
             let coarse = &levels[d as usize - 1];
             let yc = &ys[d as usize - 1];
@@ -684,10 +744,12 @@ pub fn reconstruct(
                 let table = coarse.lookup_from(keys, Map::ToCoarse, &corners);
                 z[part..part + keys.len()]
                     .par_iter_mut()
+                    .zip(wd[part..part + keys.len()].par_iter_mut())
                     .enumerate()
-                    .for_each(|(i, zi)| {
+                    .for_each(|(i, (zi, wi))| {
                         let c = octree::unpack(keys.keys[i]);
                         let mut s = 0.0;
+                        let mut sw = [0.0; 3];
                         for (o, off) in corners.iter().enumerate() {
                             let w = bspline::prolongation_weight(c[0], off[0])
                                 * bspline::prolongation_weight(c[1], off[1])
@@ -699,10 +761,21 @@ pub fn reconstruct(
                             debug_assert!(j != MISSING, "parent of a band vertex missing");
                             if j != MISSING {
                                 s += w * yc[j as usize];
+                                for a in 0..3 {
+                                    sw[a] += w * w_prev[j as usize][a];
+                                }
                             }
                         }
                         *zi = s;
+                        *wi = sw;
                     });
+            }
+        }
+        if !vcoef[d as usize].is_empty() {
+            for (wi, vi) in wd.iter_mut().zip(&vcoef[d as usize]) {
+                for a in 0..3 {
+                    wi[a] += vi[a];
+                }
             }
         }
         let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
@@ -714,13 +787,16 @@ pub fn reconstruct(
             &area,
             alpha,
             &ring,
+            if d == depth { finest_ring.take() } else { None },
         );
-        // r = b - (h L + alpha S) z over the active vertices (ghost z included).
+        // r = b - (h L + alpha S) z over the active vertices (ghost z included), with
+        // b = c_d + div(W_d).
         let mut r = vec![0.0; level.active_len()];
         sys.apply(&z, &mut r, true);
         r.par_iter_mut()
-            .zip(rhs[d as usize].par_iter())
-            .for_each(|(ri, bi)| *ri = bi - *ri);
+            .zip(finer_part[d as usize].par_iter())
+            .enumerate()
+            .for_each(|(i, (ri, ci))| *ri = ci + div_row(level, &sys.ring, i, &wd) - *ri);
         let diag = sys.diagonal();
         let mut x = vec![0.0; level.active_len()];
         let iters = if level.full {
@@ -746,6 +822,7 @@ pub fn reconstruct(
             cg: report,
         });
         ys.push(z);
+        w_prev = wd;
         progress.advance(1);
     }
     progress.end();
