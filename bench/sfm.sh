@@ -5,7 +5,9 @@
 #     median of 3 runs of 10 iterations (sfm/examples/ba_bench.rs);
 #  2. whole sfm (features, exhaustive matching, mapping with BA) on templeSparseRing and
 #     sceaux_castle (1600 px): fresco vs pycolmap on the same images, interleaved
-#     (COLMAP, fresco, COLMAP, fresco, ...), median of 3, wall and CPU seconds.
+#     (COLMAP, fresco, COLMAP, fresco, ...), median of 3, wall and CPU seconds; fresco runs
+#     `fresco reconstruct` and its poses are measured with `fresco eval poses` against the
+#     ground truth (temple) or COLMAP's committed model (sceaux).
 # Usage: bench/sfm.sh [ba|whole|all]   (default all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,6 +38,10 @@ if [[ $WHAT == whole || $WHAT == all ]]; then
             templeSparseRing) imgs=datasets/templeSparseRing ;;
             sceaux_castle) imgs=datasets/sceaux_castle/images ;;
         esac
+        case $set in
+            templeSparseRing) gt=datasets/templeSparseRing/templeSR_par.txt ;;
+            sceaux_castle) gt=datasets/reference/colmap/sceaux_castle ;;
+        esac
         cw=(); cc=(); fw=(); fc=()
         for r in $(seq $RUNS); do
             line=$($PYTHON bench/sfm_colmap.py "$imgs")
@@ -43,12 +49,15 @@ if [[ $WHAT == whole || $WHAT == all ]]; then
             cw+=("$(echo "$line" | sed 's/.*"wall": \([0-9.e-]*\).*/\1/')")
             cc+=("$(echo "$line" | sed 's/.*"cpu": \([0-9.e-]*\).*/\1/')")
             ws=$(mktemp -d)
-            /usr/bin/time -f "%e %U %S" -o "$ws/time" bash -c \
-                "$FRESCO -q features '$imgs' -o '$ws' && $FRESCO -q match '$ws' && $FRESCO -q sfm '$ws'"
-            read -r wall user sys < "$ws/time"
-            echo "fresco $set run $r: wall $wall cpu $(echo "$user + $sys" | bc) registered $($FRESCO --json eval poses "$ws" --gt "$ws/sparse" | grep '"registered"' | tr -dc 0-9)"
+            # The whole pipeline in one command (features, exhaustive matching, mapping + BA).
+            /usr/bin/time -f "%e %U %S" -o "$ws.time" \
+                "$FRESCO" -q reconstruct "$imgs" -o "$ws" || echo "fresco reconstruct failed on $set"
+            read -r wall user sys < "$ws.time"
+            # Poses against ground truth (temple) or COLMAP's committed model (sceaux).
+            echo "fresco $set run $r: wall $wall cpu $(echo "$user + $sys" | bc)"
+            "$FRESCO" --json eval poses "$ws" --gt "$gt" | grep -E '"(registered|median_rotation_deg|median_centre_frac|mean_reprojection_px)"' || true
             fw+=("$wall"); fc+=("$(echo "$user + $sys" | bc)")
-            rm -rf "$ws"
+            rm -rf "$ws" "$ws.time"
         done
         mcw=$(printf '%s\n' "${cw[@]}" | median); mcc=$(printf '%s\n' "${cc[@]}" | median)
         mfw=$(printf '%s\n' "${fw[@]}" | median); mfc=$(printf '%s\n' "${fc[@]}" | median)
