@@ -5,6 +5,7 @@
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
 mod eval;
+mod features;
 mod matching;
 mod progress;
 mod pst;
@@ -51,6 +52,8 @@ enum Command {
     Sfm(sfm::SfmArgs),
     /// Measure results against ground truth or a reference (poses).
     Eval(eval::EvalArgs),
+    /// SIFT features of a folder of photos into a workspace (feature files, images.json).
+    Features(features::FeaturesArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -80,6 +83,7 @@ fn main() -> ExitCode {
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
         Command::Eval(args) => eval::run(args, &ctx),
+        Command::Features(args) => features::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

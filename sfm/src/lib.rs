@@ -18,6 +18,10 @@
 //! - `evaluate.rs`: [`evaluate::evaluate_poses`] against a reference after similarity alignment.
 //! - `ransac.rs`: the one RANSAC ([`ransac::ransac`] over any [`ransac::Estimator`]), LO-RANSAC
 //!   with MSAC scoring, adaptive iteration count, seeded deterministic sampling.
+//! - `extract.rs`: [`extract::extract_features`] (SIFT keypoints and descriptors of a grey image,
+//!   [`extract::SiftConfig`]), built from `scale_space.rs` (Gaussian octaves, separable blur),
+//!   `dog.rs` (DoG extrema, refinement, contrast/edge tests), `orientation.rs` (36-bin
+//!   histogram peaks) and `descriptor.rs` (4x4x8 descriptor, RootSIFT, u8 quantisation).
 //! - `feature_file.rs`: [`feature_file::Features`] (keypoints, u8 descriptors) and their binary file.
 //! - `match_file.rs`: the binary file of verified pairs ([`two_view::VerifiedPair`]).
 //! - `fundamental.rs`: [`fundamental::fundamental_eight_point`] (normalised, rank 2),
@@ -43,8 +47,11 @@
 //! - `synthetic.rs`: problems with known answers for tests and benchmarks.
 
 pub mod bundle;
+pub mod descriptor;
+pub mod dog;
 pub mod essential;
 pub mod evaluate;
+pub mod extract;
 pub mod feature_file;
 pub mod focal_prior;
 pub mod fundamental;
@@ -53,9 +60,11 @@ pub mod loss;
 pub mod mapper;
 pub mod match_file;
 pub mod matching;
+pub mod orientation;
 pub mod pnp;
 pub mod ransac;
 pub mod reconstruct;
+pub mod scale_space;
 pub mod silhouette;
 pub mod synthetic;
 pub mod tracks;

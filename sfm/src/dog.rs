@@ -1,0 +1,291 @@
+//! Difference-of-Gaussian keypoint detection (Lowe 2004, sections 3-4): DoG images, 3x3x3
+//! extrema, sub-pixel/sub-scale refinement by a quadratic fit (eq. 2-3), low-contrast rejection
+//! (|D(x̂)| below `contrast_threshold / s`, OpenCV's scaling of Lowe's 0.03 to the number of
+//! intervals) and edge rejection by the Hessian ratio (eq. 4, r = 10).
+
+use fresco_core::photo::GreyImage;
+use rayon::prelude::*;
+
+use crate::scale_space::ScaleSpace;
+
+/// Detector thresholds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetectorConfig {
+    /// Minimum |D(x̂)| times the number of intervals, for grey in [0, 1] (OpenCV: 0.04).
+    pub contrast_threshold: f32,
+    /// Maximum ratio of principal curvatures `r` (Lowe: 10).
+    pub edge_threshold: f32,
+    /// Samples this close to an octave's border are not searched (the descriptor needs room).
+    pub border: usize,
+    /// Refinement steps before a wandering extremum is dropped (Lowe: 5).
+    pub max_refine_steps: usize,
+}
+
+impl Default for DetectorConfig {
+    fn default() -> Self {
+        DetectorConfig {
+            contrast_threshold: 0.04,
+            edge_threshold: 10.0,
+            border: 5,
+            max_refine_steps: 5,
+        }
+    }
+}
+
+/// A refined scale-space extremum, in the coordinates of its octave.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Extremum {
+    pub octave: usize,
+    /// Nearest integer DoG layer (1..=s) after refinement; the Gaussian image of the same index is
+    /// used for orientation and descriptor.
+    pub layer: usize,
+    /// Refined position in octave pixels (pixel indices, centres at integers).
+    pub x: f32,
+    pub y: f32,
+    /// Blur of the refined scale in octave pixels: `sigma * 2^((layer + ds) / s)`.
+    pub sigma_octave: f32,
+    /// |D(x̂)|: the interpolated DoG contrast, used to rank keypoints.
+    pub response: f32,
+}
+
+/// DoG images of one octave: `dog[i] = gaussian[i + 1] - gaussian[i]`.
+fn dog_octave(gaussians: &[GreyImage]) -> Vec<GreyImage> {
+    gaussians
+        .windows(2)
+        .map(|pair| {
+            let mut d = GreyImage::new(pair[0].width, pair[0].height);
+            d.data
+                .par_chunks_mut(8192)
+                .zip(pair[1].data.par_chunks(8192))
+                .zip(pair[0].data.par_chunks(8192))
+                .for_each(|((o, b), a)| {
+                    for ((o, &b), &a) in o.iter_mut().zip(b).zip(a) {
+                        *o = b - a;
+                    }
+                });
+            d
+        })
+        .collect()
+}
+
+/// Finds and refines the DoG extrema of every octave of `space`.
+pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extremum> {
+    let s = space.config.intervals;
+    let mut all = Vec::new();
+    for (o, octave) in space.octaves.iter().enumerate() {
+        let dog = dog_octave(&octave.gaussians);
+        let (w, h) = (octave.width(), octave.height());
+        let b = config.border.max(1);
+        if w <= 2 * b || h <= 2 * b {
+            continue;
+        }
+        // Half the final threshold: cheap pre-filter before the 26-neighbour test (as OpenCV).
+        let pre = 0.5 * config.contrast_threshold / s as f32;
+        let found: Vec<Extremum> = (1..=s)
+            .into_par_iter()
+            .flat_map_iter(|layer| (b..h - b).map(move |y| (layer, y)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .flat_map_iter(|(layer, y)| {
+                let mut out = Vec::new();
+                let (prev, cur, next) = (&dog[layer - 1], &dog[layer], &dog[layer + 1]);
+                let row = cur.row(y);
+                for x in b..w - b {
+                    let v = row[x];
+                    if v.abs() <= pre || !is_extremum(prev, cur, next, x, y, v) {
+                        continue;
+                    }
+                    if let Some(e) = refine(&dog, o, layer, x, y, s, space, config) {
+                        out.push(e);
+                    }
+                }
+                out
+            })
+            .collect();
+        all.extend(found);
+    }
+    all
+}
+
+/// True when `v = cur(x, y)` is at least (positive `v`) or at most (negative `v`) each of its 26
+/// neighbours in the three DoG images.
+#[inline]
+fn is_extremum(
+    prev: &GreyImage,
+    cur: &GreyImage,
+    next: &GreyImage,
+    x: usize,
+    y: usize,
+    v: f32,
+) -> bool {
+    let w = cur.width;
+    let idx = [
+        (y - 1) * w + x - 1,
+        (y - 1) * w + x,
+        (y - 1) * w + x + 1,
+        y * w + x - 1,
+        y * w + x + 1,
+        (y + 1) * w + x - 1,
+        (y + 1) * w + x,
+        (y + 1) * w + x + 1,
+    ];
+    let centre = y * w + x;
+    if v > 0.0 {
+        idx.iter().all(|&i| v >= cur.data[i])
+            && idx.iter().all(|&i| v >= prev.data[i] && v >= next.data[i])
+            && v >= prev.data[centre]
+            && v >= next.data[centre]
+    } else {
+        idx.iter().all(|&i| v <= cur.data[i])
+            && idx.iter().all(|&i| v <= prev.data[i] && v <= next.data[i])
+            && v <= prev.data[centre]
+            && v <= next.data[centre]
+    }
+}
+
+/// Lowe's eq. 2-3: fits a 3-D quadratic at the sample, moves to the neighbour sample while the
+/// offset exceeds 0.5 in any dimension, then applies the contrast and edge tests.
+#[allow(clippy::too_many_arguments)]
+fn refine(
+    dog: &[GreyImage],
+    octave: usize,
+    layer: usize,
+    x: usize,
+    y: usize,
+    s: usize,
+    space: &ScaleSpace,
+    config: &DetectorConfig,
+) -> Option<Extremum> {
+    let (w, h) = (dog[0].width as isize, dog[0].height as isize);
+    let b = config.border.max(1) as isize;
+    let (mut xi, mut yi, mut li) = (x as isize, y as isize, layer as isize);
+    let mut step = 0;
+    loop {
+        let at = |l: isize, yy: isize, xx: isize| dog[l as usize].data[(yy * w + xx) as usize];
+        let c = at(li, yi, xi);
+        let g = [
+            0.5 * (at(li, yi, xi + 1) - at(li, yi, xi - 1)),
+            0.5 * (at(li, yi + 1, xi) - at(li, yi - 1, xi)),
+            0.5 * (at(li + 1, yi, xi) - at(li - 1, yi, xi)),
+        ];
+        let dxx = at(li, yi, xi + 1) + at(li, yi, xi - 1) - 2.0 * c;
+        let dyy = at(li, yi + 1, xi) + at(li, yi - 1, xi) - 2.0 * c;
+        let dss = at(li + 1, yi, xi) + at(li - 1, yi, xi) - 2.0 * c;
+        let dxy = 0.25
+            * (at(li, yi + 1, xi + 1) - at(li, yi + 1, xi - 1) - at(li, yi - 1, xi + 1)
+                + at(li, yi - 1, xi - 1));
+        let dxs = 0.25
+            * (at(li + 1, yi, xi + 1) - at(li + 1, yi, xi - 1) - at(li - 1, yi, xi + 1)
+                + at(li - 1, yi, xi - 1));
+        let dys = 0.25
+            * (at(li + 1, yi + 1, xi) - at(li + 1, yi - 1, xi) - at(li - 1, yi + 1, xi)
+                + at(li - 1, yi - 1, xi));
+        let hess = [[dxx, dxy, dxs], [dxy, dyy, dys], [dxs, dys, dss]];
+        // x̂ = -H^-1 g (eq. 3).
+        let offset = solve3(&hess, &g)?.map(|v| -v);
+        if offset.iter().all(|v| v.abs() < 0.5) {
+            let contrast = c + 0.5 * (g[0] * offset[0] + g[1] * offset[1] + g[2] * offset[2]);
+            if contrast.abs() * (s as f32) < config.contrast_threshold {
+                return None;
+            }
+            // Edge test on the 2x2 spatial Hessian (eq. 4).
+            let (tr, det) = (dxx + dyy, dxx * dyy - dxy * dxy);
+            let r = config.edge_threshold;
+            if det <= 0.0 || tr * tr * r >= (r + 1.0) * (r + 1.0) * det {
+                return None;
+            }
+            let sigma = space.config.sigma;
+            return Some(Extremum {
+                octave,
+                layer: li as usize,
+                x: xi as f32 + offset[0],
+                y: yi as f32 + offset[1],
+                sigma_octave: sigma * 2f32.powf((li as f32 + offset[2]) / s as f32),
+                response: contrast.abs(),
+            });
+        }
+        step += 1;
+        if step >= config.max_refine_steps || offset.iter().any(|v| v.abs() > 1e6) {
+            return None;
+        }
+        xi += offset[0].round() as isize;
+        yi += offset[1].round() as isize;
+        li += offset[2].round() as isize;
+        if li < 1 || li > s as isize || xi < b || xi >= w - b || yi < b || yi >= h - b {
+            return None;
+        }
+    }
+}
+
+/// Solves the symmetric 3x3 system `a x = b` by Cramer's rule; `None` when singular.
+fn solve3(a: &[[f32; 3]; 3], b: &[f32; 3]) -> Option<[f32; 3]> {
+    let det3 = |m: &[[f32; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det3(a);
+    if d.abs() < 1e-20 || !d.is_finite() {
+        return None;
+    }
+    let mut x = [0f32; 3];
+    for (col, xv) in x.iter_mut().enumerate() {
+        let mut m = *a;
+        for row in 0..3 {
+            m[row][col] = b[row];
+        }
+        *xv = det3(&m) / d;
+    }
+    Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scale_space::{ScaleSpaceConfig, build_scale_space};
+
+    /// A Gaussian blob of standard deviation `sigma` centred at (cx, cy) (pixel-centre indices).
+    fn blob(w: usize, h: usize, cx: f32, cy: f32, sigma: f32) -> GreyImage {
+        let mut img = GreyImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let r2 = (x as f32 - cx).powi(2) + (y as f32 - cy).powi(2);
+                img.data[y * w + x] = 0.2 + 0.6 * (-r2 / (2.0 * sigma * sigma)).exp();
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn a_blob_is_found_at_its_centre_and_scale() {
+        // A Gaussian blob of std t has its strongest scale-normalised DoG response at
+        // sigma = t (Lindeberg; Lowe's DoG approximates sigma^2 Laplacian), found at its centre.
+        let (cx, cy, t) = (40.3f32, 37.6f32, 4.0f32);
+        let img = blob(80, 80, cx, cy, t);
+        let ss = build_scale_space(&img, &ScaleSpaceConfig::default());
+        let ext = detect_extrema(&ss, &DetectorConfig::default());
+        let best = ext
+            .iter()
+            .max_by(|a, b| a.response.total_cmp(&b.response))
+            .expect("the blob is detected");
+        let oct = &ss.octaves[best.octave];
+        let (x, y) = (
+            oct.step * best.x + oct.offset - 0.5,
+            oct.step * best.y + oct.offset - 0.5,
+        );
+        assert!((x - cx).abs() < 0.3 && (y - cy).abs() < 0.3, "{x} {y}");
+        let sigma = best.sigma_octave * oct.step;
+        assert!((sigma / t - 1.0).abs() < 0.25, "sigma {sigma}");
+    }
+
+    #[test]
+    fn solve3_inverts() {
+        let a = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]];
+        let x = [1.0, -2.0, 0.5];
+        let b = [0, 1, 2].map(|r| a[r][0] * x[0] + a[r][1] * x[1] + a[r][2] * x[2]);
+        let got = solve3(&a, &b).unwrap();
+        for i in 0..3 {
+            assert!((got[i] - x[i]).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,237 @@
+//! SIFT feature extraction for one image: optional down-scaling to `max_image_size`, Gaussian
+//! scale space, DoG extrema, orientations, descriptors, strongest `max_features` kept. Keypoints
+//! are reported in pixels of the image as given (COLMAP's convention, see `feature_file.rs`).
+//!
+//! Work inside one image runs on rayon (blur rows, DoG rows, keypoints); callers extracting many
+//! images can also run [`extract_features`] from several rayon tasks.
+
+use std::path::Path;
+
+use fresco_core::photo::{GreyImage, PhotoError, load_photo};
+use rayon::prelude::*;
+
+use crate::descriptor::{quantise, root_sift, sift_descriptor};
+use crate::dog::{DetectorConfig, detect_extrema};
+use crate::feature_file::{Features, Keypoint};
+use crate::orientation::{OrientationConfig, dominant_orientations};
+use crate::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
+
+/// Everything that controls feature extraction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SiftConfig {
+    /// Keep at most this many keypoints, the strongest by |DoG| response (COLMAP: 8192);
+    /// 0 keeps all.
+    pub max_features: usize,
+    /// All orientations 0 (for photos known to be upright): no rotation invariance, fewer
+    /// ambiguities.
+    pub upright: bool,
+    /// Store RootSIFT descriptors instead of SIFT.
+    pub root_sift: bool,
+    /// Images whose longer side exceeds this are down-scaled first (COLMAP: 3200); 0 never.
+    pub max_image_size: usize,
+    pub scale_space: ScaleSpaceConfig,
+    pub detector: DetectorConfig,
+    pub orientation: OrientationConfig,
+}
+
+impl Default for SiftConfig {
+    fn default() -> Self {
+        SiftConfig {
+            max_features: 8192,
+            upright: false,
+            root_sift: false,
+            max_image_size: 3200,
+            scale_space: ScaleSpaceConfig::default(),
+            detector: DetectorConfig::default(),
+            orientation: OrientationConfig::default(),
+        }
+    }
+}
+
+/// Smallest image side (after down-scaling) that is searched; smaller images give no features.
+pub const MIN_IMAGE_SIDE: usize = 16;
+
+/// A keypoint with its float descriptor and the response it was ranked by.
+struct Detection {
+    keypoint: Keypoint,
+    response: f32,
+    descriptor: [f32; 128],
+}
+
+/// Detects and describes SIFT features of a grey image (any value range works, the thresholds
+/// assume [0, 1] as `fresco_core::photo` produces). Images with a side below
+/// [`MIN_IMAGE_SIDE`] give no features.
+pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
+    let (w, h) = (image.width, image.height);
+    let mut features = Features {
+        width: w as u32,
+        height: h as u32,
+        root_sift: config.root_sift,
+        keypoints: Vec::new(),
+        descriptors: Vec::new(),
+    };
+    // Down-scale first so that the scale space of a huge photo stays bounded.
+    let longer = w.max(h);
+    let scaled;
+    let (work, ratio_x, ratio_y) = if config.max_image_size > 0 && longer > config.max_image_size {
+        let f = config.max_image_size as f64 / longer as f64;
+        let (nw, nh) = (
+            ((w as f64 * f).round() as usize).max(1),
+            ((h as f64 * f).round() as usize).max(1),
+        );
+        scaled = downscale_area(image, nw, nh);
+        (&scaled, w as f32 / nw as f32, h as f32 / nh as f32)
+    } else {
+        (image, 1.0, 1.0)
+    };
+    if work.width.min(work.height) < MIN_IMAGE_SIDE {
+        return features;
+    }
+    let space = build_scale_space(work, &config.scale_space);
+    let mut extrema = detect_extrema(&space, &config.detector);
+    // Rank before describing: only the strongest locations need orientations and descriptors.
+    extrema.sort_by(|a, b| b.response.total_cmp(&a.response));
+    if config.max_features > 0 {
+        extrema.truncate(config.max_features);
+    }
+    let ratio_scale = 0.5 * (ratio_x + ratio_y);
+    let mut detections: Vec<Detection> = extrema
+        .par_iter()
+        .flat_map_iter(|e| {
+            let octave = &space.octaves[e.octave];
+            let g = &octave.gaussians[e.layer];
+            let angles = if config.upright {
+                vec![0.0]
+            } else {
+                dominant_orientations(g, e.x, e.y, e.sigma_octave, &config.orientation)
+            };
+            angles.into_iter().map(move |angle| Detection {
+                keypoint: Keypoint {
+                    x: (octave.step * e.x + octave.offset) * ratio_x,
+                    y: (octave.step * e.y + octave.offset) * ratio_y,
+                    scale: e.sigma_octave * octave.step * ratio_scale,
+                    orientation: angle,
+                },
+                response: e.response,
+                descriptor: sift_descriptor(g, e.x, e.y, e.sigma_octave, angle),
+            })
+        })
+        .collect();
+    // Extra orientations can push the count over the limit again; the sort is stable, so the
+    // orientations of one location stay together in histogram order.
+    detections.sort_by(|a, b| b.response.total_cmp(&a.response));
+    if config.max_features > 0 {
+        detections.truncate(config.max_features);
+    }
+    for mut d in detections {
+        if config.root_sift {
+            root_sift(&mut d.descriptor);
+        }
+        features.keypoints.push(d.keypoint);
+        features.descriptors.push(quantise(&d.descriptor));
+    }
+    features
+}
+
+/// Loads the photo at `path` (see `fresco_core::photo`) and extracts its features.
+pub fn extract_features_from_file(
+    path: &Path,
+    config: &SiftConfig,
+) -> Result<Features, PhotoError> {
+    let photo = load_photo(path)?;
+    Ok(extract_features(&photo.grey, config))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(w: usize, h: usize) -> GreyImage {
+        // Blobs of several sizes on a smooth background: plenty of DoG extrema.
+        let mut g = GreyImage::new(w, h);
+        let blobs = [
+            (30.0, 40.0, 3.0, 0.5),
+            (90.0, 35.0, 6.0, -0.4),
+            (150.0, 70.0, 4.0, 0.6),
+            (60.0, 100.0, 8.0, 0.5),
+            (130.0, 120.0, 2.5, -0.5),
+        ];
+        for y in 0..h {
+            for x in 0..w {
+                let mut v = 0.3 + 0.001 * x as f32;
+                for &(bx, by, s, a) in &blobs {
+                    let r2 = (x as f32 - bx).powi(2) + (y as f32 - by).powi(2);
+                    v += a * (-r2 / (2.0f32 * s * s)).exp();
+                }
+                g.data[y * w + x] = v;
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn downscaling_reports_original_coordinates() {
+        // The same scene at 2x the resolution, limited to the original size, must give keypoints
+        // at twice the coordinates and scales of the small one (same pixels after averaging).
+        let small = scene(180, 150);
+        let mut big = GreyImage::new(360, 300);
+        for y in 0..300 {
+            for x in 0..360 {
+                big.data[y * 360 + x] = small.at(x / 2, y / 2);
+            }
+        }
+        let config = SiftConfig {
+            max_image_size: 180,
+            ..Default::default()
+        };
+        let a = extract_features(&small, &SiftConfig::default());
+        let b = extract_features(&big, &config);
+        assert_eq!((b.width, b.height), (360, 300));
+        assert!(!a.is_empty());
+        assert_eq!(a.len(), b.len());
+        for (ka, kb) in a.keypoints.iter().zip(&b.keypoints) {
+            assert!((2.0 * ka.x - kb.x).abs() < 1e-3 && (2.0 * ka.y - kb.y).abs() < 1e-3);
+            assert!((2.0 * ka.scale - kb.scale).abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn limits_and_options() {
+        let img = scene(180, 150);
+        let all = extract_features(
+            &img,
+            &SiftConfig {
+                max_features: 0,
+                ..Default::default()
+            },
+        );
+        let few = extract_features(
+            &img,
+            &SiftConfig {
+                max_features: 3,
+                ..Default::default()
+            },
+        );
+        assert!(all.len() > 3);
+        assert_eq!(few.len(), 3);
+        let upright = extract_features(
+            &img,
+            &SiftConfig {
+                upright: true,
+                ..Default::default()
+            },
+        );
+        assert!(upright.keypoints.iter().all(|k| k.orientation == 0.0));
+        let root = extract_features(
+            &img,
+            &SiftConfig {
+                root_sift: true,
+                ..Default::default()
+            },
+        );
+        assert!(root.root_sift && root.len() == all.len());
+        // Too small: nothing, no panic.
+        assert!(extract_features(&GreyImage::new(10, 10), &SiftConfig::default()).is_empty());
+        assert!(extract_features(&GreyImage::new(0, 0), &SiftConfig::default()).is_empty());
+    }
+}
