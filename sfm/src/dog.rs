@@ -90,8 +90,7 @@ pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extrem
                 let mut out = Vec::new();
                 let (prev, cur, next) = (&dog[layer - 1], &dog[layer], &dog[layer + 1]);
                 let row = cur.row(y);
-                for x in b..w - b {
-                    let v = row[x];
+                for (x, &v) in row.iter().enumerate().take(w - b).skip(b) {
                     if v.abs() <= pre || !is_extremum(prev, cur, next, x, y, v) {
                         continue;
                     }
