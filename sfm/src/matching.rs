@@ -443,4 +443,101 @@ mod tests {
             assert!(p.iter().any(|&(a, b)| a == i || b == i));
         }
     }
+
+    #[test]
+    fn match_pairs_on_a_synthetic_scene() {
+        use crate::feature_file::Keypoint;
+        use crate::focal_prior::FocalSource;
+        use crate::fundamental::tests::Scene;
+        use crate::two_view::PairKind;
+        use crate::view_graph::ViewGraph;
+        use fresco_core::NoProgress;
+
+        // Images 1 and 2 see the same 300 points (descriptors: noisy copies of one random
+        // descriptor per point, image 2 in reverse order); image 3 sees something else.
+        let scene = Scene::new(12, 300, false);
+        let pixels = scene.pixels(0.3, 2);
+        let base = random_descriptors(300, 4);
+        let mut rng = Lcg(6);
+        let mut noisy =
+            |d: &Descriptor| d.map(|v| (v as f64 + rng.range(-5.0, 5.0)).clamp(0.0, 255.0) as u8);
+        let kp = |x: f64, y: f64| Keypoint {
+            x: x as f32,
+            y: y as f32,
+            scale: 2.0,
+            orientation: 0.0,
+        };
+        let f1 = Features {
+            width: 640,
+            height: 480,
+            root_sift: false,
+            keypoints: pixels.iter().map(|c| kp(c.x1.x, c.x1.y)).collect(),
+            descriptors: base.iter().map(&mut noisy).collect(),
+        };
+        let f2 = Features {
+            width: 640,
+            height: 480,
+            root_sift: false,
+            keypoints: pixels.iter().rev().map(|c| kp(c.x2.x, c.x2.y)).collect(),
+            descriptors: base.iter().rev().map(&mut noisy).collect(),
+        };
+        let f3 = Features {
+            width: 640,
+            height: 480,
+            root_sift: false,
+            keypoints: (0..300)
+                .map(|_| kp(rng.range(0.0, 640.0), rng.range(0.0, 480.0)))
+                .collect(),
+            descriptors: random_descriptors(300, 8),
+        };
+        let prior = FocalPrior {
+            focal_x: 800.0,
+            focal_y: 800.0,
+            cx: 320.0,
+            cy: 240.0,
+            source: FocalSource::CalibrationFile,
+        };
+        let feats = [f1, f2, f3];
+        let images: Vec<MatchImage> = feats
+            .iter()
+            .enumerate()
+            .map(|(i, f)| MatchImage {
+                id: i as u32 + 1,
+                features: f,
+                prior: &prior,
+            })
+            .collect();
+        let pairs = select_pairs(&feats, PairSelection::Exhaustive);
+        let out = match_pairs(
+            &images,
+            &pairs,
+            &MatchingConfig::default(),
+            &VerificationConfig::default(),
+            &NoProgress,
+        );
+        assert_eq!(
+            out.iter().map(|p| (p.image1, p.image2)).collect::<Vec<_>>(),
+            vec![(1, 2), (1, 3), (2, 3)]
+        );
+        let g = &out[0].geometry;
+        assert_eq!(g.kind, PairKind::Calibrated);
+        // ±5 noise on 128 entries vs independent random descriptors: every copy is found and
+        // verified (0.3 px keypoint noise against a 4 px threshold), and each inlier pairs a
+        // point with itself (image 2 is reversed).
+        assert_eq!(g.inliers.len(), 300);
+        assert!(g.inliers.iter().all(|&[a, b]| a + b == 299));
+        let err = g
+            .cam2_from_cam1
+            .unwrap()
+            .rotation
+            .angle_to(&scene.cam2_from_cam1.rotation);
+        assert!(err.to_degrees() < 0.1, "{}", err.to_degrees());
+        assert_eq!(out[1].geometry.kind, PairKind::Degenerate);
+        assert_eq!(out[2].geometry.kind, PairKind::Degenerate);
+        let comps = ViewGraph::new(&[1, 2, 3], &out, 15).components();
+        assert_eq!(
+            comps.iter().map(|c| c.images.clone()).collect::<Vec<_>>(),
+            vec![vec![1, 2], vec![3]]
+        );
+    }
 }
