@@ -169,6 +169,9 @@ struct LookupsArgs {
     count: usize,
     #[arg(short, default_value_t = 8)]
     k: usize,
+    /// Lookups compared with a brute-force evaluation.
+    #[arg(long, default_value_t = 2000)]
+    check: usize,
 }
 
 pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
@@ -319,6 +322,14 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
                 field.eval_many(&queries, &mut out);
                 best = best.min(t.elapsed().as_secs_f64());
             }
+            // Brute-force check on an evenly spread subset, on the PST's own channels and on
+            // positions as attributes (a field that is never constant).
+            let stride = (queries.len() / a.check.max(1)).max(1);
+            let subset: Vec<[f32; 3]> = queries.iter().step_by(stride).copied().collect();
+            let own = fresco_pst::bench::brute_force_agreement(&field, &subset);
+            let xyz = fresco_pst::bench::with_position_attributes(&pst.samples);
+            let xyz_field = fresco_pst::Field::new(&xyz, field_config(a.k, None)?);
+            let pos = fresco_pst::bench::brute_force_agreement(&xyz_field, &subset);
             Ok(json!({
                 "samples": pst.samples.len(),
                 "lookups": a.count,
@@ -326,6 +337,8 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
                 "threads": rayon::current_num_threads(),
                 "seconds": best,
                 "lookups_per_second": a.count as f64 / best,
+                "brute_force_channels": own,
+                "brute_force_positions": pos,
             }))
         }
     }

@@ -66,8 +66,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     let t = Instant::now();
+    // Absolute: ops resolve relative paths against the script's folder (here `work`).
     let op = Op::Transfer {
-        model: model_path.clone(),
+        model: std::path::absolute(&model_path)?,
         max_distance: None,
         region: Region::All,
         channel: "rgb".into(),

