@@ -9,6 +9,7 @@ mod features;
 mod matching;
 mod progress;
 mod pst;
+mod reconstruct;
 mod sfm;
 mod synth;
 
@@ -52,6 +53,8 @@ enum Command {
     Sfm(sfm::SfmArgs),
     /// Measure results against ground truth or a reference (poses).
     Eval(eval::EvalArgs),
+    /// Photos to cameras and sparse points in one go: features, match, sfm.
+    Reconstruct(reconstruct::ReconstructArgs),
     /// SIFT features of a folder of photos into a workspace (feature files, images.json).
     Features(features::FeaturesArgs),
 }
@@ -83,6 +86,7 @@ fn main() -> ExitCode {
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
         Command::Eval(args) => eval::run(args, &ctx),
+        Command::Reconstruct(args) => reconstruct::run(args, &ctx),
         Command::Features(args) => features::run(args, &ctx),
     };
     match result {

@@ -1,0 +1,92 @@
+//! `fresco reconstruct <images dir> -o <ws>`: photos to cameras and a sparse point cloud in
+//! one command: `fresco features`, `fresco match` and `fresco sfm` with their defaults, one
+//! after the other on the same workspace, with the three summaries and the time of each.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use serde_json::json;
+
+#[derive(Args, Debug)]
+pub struct ReconstructArgs {
+    /// Folder of photos (*.png, *.jpg, *.jpeg).
+    pub images: PathBuf,
+    /// Workspace folder (created): images.json, features/, matches/, sparse/.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Calibration matrix (3x3, K.txt) shared by all photos; overrides EXIF and is trusted by
+    /// the mapper.
+    #[arg(long)]
+    pub focal_file: Option<PathBuf>,
+    /// Camera model: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV.
+    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    pub camera_model: String,
+    /// One camera (intrinsics) shared by all photos.
+    #[arg(long)]
+    pub single_camera: bool,
+    /// Folder of object masks for silhouette constraints (see `fresco sfm --masks`).
+    #[arg(long)]
+    pub masks: Option<PathBuf>,
+}
+
+pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
+    let start = Instant::now();
+    let features = crate::features::run(
+        crate::features::FeaturesArgs {
+            images: args.images.clone(),
+            output: args.output.clone(),
+            max_features: 8192,
+            max_image_size: 3200,
+            upright: false,
+            rootsift: false,
+            no_upsample: false,
+            camera_model: args.camera_model.clone(),
+            focal_file: args.focal_file.clone(),
+        },
+        ctx,
+    )?;
+    let t_features = start.elapsed().as_secs_f64();
+    let matches = crate::matching::run(
+        crate::matching::MatchArgs {
+            workspace: args.output.clone(),
+            sequential: None,
+            retrieval: None,
+            ratio: 0.8,
+            no_mutual: false,
+            max_error: 4.0,
+            min_inliers: 15,
+        },
+        ctx,
+    )?;
+    let t_match = start.elapsed().as_secs_f64() - t_features;
+    let sfm = crate::sfm::run(
+        crate::sfm::SfmArgs {
+            workspace: args.output.clone(),
+            masks: args.masks.clone(),
+            camera_model: args.camera_model.clone(),
+            single_camera: args.single_camera,
+            per_image_camera: false,
+            init_min_inliers: 100,
+        },
+        ctx,
+    )?;
+    let total = start.elapsed().as_secs_f64();
+    Ok(json!({
+        "workspace": args.output,
+        "registered": sfm["registered"],
+        "images": sfm["images"],
+        "points": sfm["points"],
+        "mean_reprojection_px": sfm["mean_reprojection_px"],
+        "model": sfm["models"][0]["dir"],
+        "seconds": {
+            "features": t_features,
+            "match": t_match,
+            "sfm": total - t_features - t_match,
+            "total": total,
+        },
+        "features": features,
+        "match": matches,
+        "sfm": sfm,
+    }))
+}
