@@ -7,6 +7,7 @@
 mod eval;
 mod features;
 mod matching;
+mod mesh;
 mod progress;
 mod pst;
 mod reconstruct;
@@ -45,6 +46,9 @@ enum Command {
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
     /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
     Synth(synth::SynthArgs),
+    /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
+    /// density trimming, clean-up and decimation.
+    Mesh(mesh::MeshArgs),
     /// Point-sampled textures for meshes too large for memory.
     Pst(pst::PstArgs),
     /// Match the features of a workspace's images and verify the pairs' two-view geometry.
@@ -83,6 +87,7 @@ fn main() -> ExitCode {
     let result: anyhow::Result<serde_json::Value> = match cli.command {
         Command::Synth(args) => synth::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
+        Command::Mesh(args) => mesh::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
         Command::Eval(args) => eval::run(args, &ctx),

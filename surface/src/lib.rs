@@ -13,6 +13,7 @@
 //! - `trim.rs`: [`trim::trim_by_density`] (PoissonRecon's SurfaceTrimmer: clip at a density, drop islands).
 //! - `cleanup.rs`: [`cleanup::cleanup`] (weld, degenerate/duplicate faces, non-manifold repair, small parts).
 //! - `decimate.rs`: [`decimate::decimate`] (Garland–Heckbert quadric edge collapse, boundaries kept).
+//! - `pipeline.rs`: [`pipeline::mesh_from_points`] (points to a clean mesh: normals, Poisson, trim, clean-up, decimation).
 //! - `metrics.rs`: [`metrics::mesh_distance`], [`metrics::point_set_distance`] (Chamfer, Hausdorff, F-score).
 
 pub mod bspline;
@@ -22,6 +23,7 @@ pub mod isosurface;
 pub mod metrics;
 pub mod normals;
 pub mod octree;
+pub mod pipeline;
 pub mod poisson;
 pub mod solver;
 pub mod trim;

@@ -1,0 +1,111 @@
+//! `fresco mesh <ws>`: oriented points to `<ws>/mesh.ply` through
+//! `fresco_surface::pipeline::mesh_from_points` (Poisson, trimming, clean-up, decimation).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::ply::{PlyFormat, PlyReader, write_mesh};
+use fresco_surface::pipeline::{MeshConfig, mesh_from_points};
+use fresco_surface::trim::TrimConfig;
+
+#[derive(Args, Debug)]
+pub struct MeshArgs {
+    /// Workspace folder: reads <ws>/dense/fused.ply (unless --points), writes <ws>/mesh.ply.
+    pub workspace: PathBuf,
+    /// Read the points from this PLY instead (vertices with or without nx ny nz).
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// Octree depth of the Poisson reconstruction (2-12).
+    #[arg(long, default_value_t = 9)]
+    pub depth: u32,
+    /// Screening weight of the samples (PoissonRecon's --pointWeight).
+    #[arg(long, default_value_t = 4.0)]
+    pub point_weight: f64,
+    /// Trim the surface where the sampling density is below this (0 keeps everything).
+    #[arg(long, default_value_t = 7.0)]
+    pub trim: f32,
+    /// Face budget of the output (0 keeps every face).
+    #[arg(long, default_value_t = 200_000)]
+    pub faces: usize,
+    /// Fail on points without normals instead of estimating them.
+    #[arg(long)]
+    pub no_normal_estimation: bool,
+    /// Write ASCII PLY instead of binary.
+    #[arg(long)]
+    pub ascii: bool,
+}
+
+pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
+    let input = args
+        .points
+        .clone()
+        .unwrap_or_else(|| args.workspace.join("dense").join("fused.ply"));
+    let output = args.workspace.join("mesh.ply");
+    if !args.workspace.is_dir() {
+        bail!("workspace {} is not a folder", args.workspace.display());
+    }
+    if same_file(&input, &output) {
+        bail!(
+            "the input {} is the output mesh.ply: it would be overwritten",
+            input.display()
+        );
+    }
+    let (points, normals) = read_points(&input)?;
+    let mut cfg = MeshConfig {
+        estimate_normals: !args.no_normal_estimation,
+        trim: (args.trim > 0.0).then(|| TrimConfig {
+            trim: args.trim,
+            ..TrimConfig::default()
+        }),
+        target_faces: (args.faces > 0).then_some(args.faces),
+        ..MeshConfig::default()
+    };
+    cfg.poisson.depth = args.depth;
+    cfg.poisson.point_weight = args.point_weight;
+    let bars = crate::progress::Bars::new(ctx);
+    let (mesh, report) = mesh_from_points(&points, normals.as_deref(), &cfg, &bars)
+        .with_context(|| format!("meshing the points of {}", input.display()))?;
+    let format = if args.ascii {
+        PlyFormat::Ascii
+    } else {
+        PlyFormat::BinaryLittleEndian
+    };
+    write_mesh(&output, &mesh, format)?;
+    let mut summary = serde_json::to_value(&report)?;
+    if let serde_json::Value::Object(map) = &mut summary {
+        map.insert("input".into(), input.display().to_string().into());
+        map.insert("output".into(), output.display().to_string().into());
+    }
+    Ok(summary)
+}
+
+/// Points and, if the file has them, their normals.
+type Cloud = (Vec<Point3<f64>>, Option<Vec<Vector3<f64>>>);
+
+/// All vertices of a PLY, with their normals if the file has them. NaN coordinates are
+/// passed through: the library drops and counts them.
+fn read_points(path: &Path) -> anyhow::Result<Cloud> {
+    let mut reader = PlyReader::open(path)?;
+    if reader.vertex_count() == 0 {
+        bail!("{}: no vertices", path.display());
+    }
+    let has_normals = reader.has_normals();
+    let mut points = Vec::with_capacity(reader.vertex_count().min(1 << 24) as usize);
+    let mut normals = has_normals.then(|| Vec::with_capacity(points.capacity()));
+    while let Some(v) = reader.next_vertex()? {
+        points.push(v.position);
+        if let (Some(ns), Some(n)) = (normals.as_mut(), v.normal) {
+            ns.push(n);
+        }
+    }
+    Ok((points, normals))
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
