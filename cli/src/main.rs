@@ -13,6 +13,7 @@ mod pst;
 mod reconstruct;
 mod sfm;
 mod synth;
+mod unwrap;
 
 use std::process::ExitCode;
 
@@ -61,6 +62,8 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// SIFT features of a folder of photos into a workspace (feature files, images.json).
     Features(features::FeaturesArgs),
+    /// Charts, flattens and packs a mesh's texture coordinates (with a PNG of the atlas).
+    Unwrap(unwrap::UnwrapArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -93,6 +96,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(args, &ctx),
         Command::Reconstruct(args) => reconstruct::run(args, &ctx),
         Command::Features(args) => features::run(args, &ctx),
+        Command::Unwrap(args) => unwrap::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

@@ -14,11 +14,13 @@
 //! the mesh; building blocks [`chart_mesh::ChartMesh`], [`harmonic::mean_value`] (fold-free
 //! fallback), [`lscm::lscm`] (conformal map), [`stretch::optimise`] (Sander's L2 stretch),
 //! [`split::split_in_two`], [`pack::pack`]. [`metrics::measure`] scores any mesh's UVs
-//! (flips, overlaps, L2/L∞ stretch, angle distortion, utilisation, seams).
+//! (flips, overlaps, L2/L∞ stretch, angle distortion, utilisation, seams);
+//! [`chart_image::chart_image`] draws an atlas with a distortion checker.
 //!
 //! Errors: [`ParamError`].
 
 pub mod agd;
+pub mod chart_image;
 pub mod chart_mesh;
 pub mod charts;
 pub mod error;

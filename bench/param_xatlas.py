@@ -1,0 +1,50 @@
+"""xatlas reference for bench/param.sh: unwraps a PLY with xatlas (pip `xatlas`), times
+Atlas.add_mesh + generate (no file I/O), writes the result as OBJ (positions via vmapping,
+per-vertex UVs) for `fresco unwrap --measure`, and prints a JSON line with the timing and
+xatlas's own figures.
+
+usage: param_xatlas.py <in.ply> <out.obj> <atlas_size> <gutter>
+"""
+import json
+import sys
+import time
+
+import numpy as np
+import trimesh
+import xatlas
+
+
+def main():
+    src, dst, atlas, gutter = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    mesh = trimesh.load(src, process=False)
+    pos = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
+    idx = np.ascontiguousarray(mesh.faces, dtype=np.uint32)
+    t0 = time.perf_counter()
+    a = xatlas.Atlas()
+    a.add_mesh(pos, idx)
+    pack = xatlas.PackOptions()
+    pack.resolution = atlas
+    pack.padding = gutter
+    a.generate(pack_options=pack)
+    seconds = time.perf_counter() - t0
+    vmapping, indices, uvs = a.get_mesh(0)
+    with open(dst, "w") as f:
+        f.write("# xatlas\n")
+        for v in pos[vmapping]:
+            f.write(f"v {v[0]!r} {v[1]!r} {v[2]!r}\n")
+        for uv in uvs:
+            f.write(f"vt {uv[0]!r} {uv[1]!r}\n")
+        for t in indices + 1:
+            f.write(f"f {t[0]}/{t[0]} {t[1]}/{t[1]} {t[2]}/{t[2]}\n")
+    print(json.dumps({
+        "seconds": seconds,
+        "atlas_count": a.atlas_count,
+        "chart_count": a.chart_count,
+        "width": a.width,
+        "height": a.height,
+        "utilization": [float(u) for u in a.utilization],
+    }))
+
+
+if __name__ == "__main__":
+    main()
