@@ -31,9 +31,9 @@ def main():
     with open(dst, "w") as f:
         f.write("# xatlas\n")
         for v in pos[vmapping]:
-            f.write(f"v {v[0]!r} {v[1]!r} {v[2]!r}\n")
+            f.write("v %.9g %.9g %.9g\n" % (v[0], v[1], v[2]))
         for uv in uvs:
-            f.write(f"vt {uv[0]!r} {uv[1]!r}\n")
+            f.write("vt %.9g %.9g\n" % (uv[0], uv[1]))
         for t in indices + 1:
             f.write(f"f {t[0]}/{t[0]} {t[1]}/{t[1]} {t[2]}/{t[2]}\n")
     print(json.dumps({
@@ -42,7 +42,7 @@ def main():
         "chart_count": a.chart_count,
         "width": a.width,
         "height": a.height,
-        "utilization": [float(u) for u in a.utilization],
+        "utilization": np.atleast_1d(a.utilization).astype(float).tolist(),
     }))
 
 
