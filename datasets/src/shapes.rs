@@ -198,18 +198,23 @@ pub fn double_torus(n: u32) -> Mesh {
     )
 }
 
-/// A genus-0 blob: an icosphere whose radius varies by a sum of `waves` smooth bumps.
-pub fn blob(levels: u32, waves: u32) -> Mesh {
-    let mut mesh = icosphere(1.0, levels);
-    // Deterministic directions from a golden-angle spiral: no RNG needed for the shape.
-    let dirs: Vec<Vector3<f64>> = (0..waves)
+/// `n` unit directions spread evenly over the sphere along a golden-angle spiral:
+/// deterministic, so shapes built on them need no RNG.
+pub fn spiral_directions(n: u32) -> Vec<Vector3<f64>> {
+    (0..n)
         .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / waves as f64;
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
             let phi = i as f64 * 2.399_963_229_728_653;
             let s = (1.0 - z * z).sqrt();
             Vector3::new(s * phi.cos(), s * phi.sin(), z)
         })
-        .collect();
+        .collect()
+}
+
+/// A genus-0 blob: an icosphere whose radius varies by a sum of `waves` smooth bumps.
+pub fn blob(levels: u32, waves: u32) -> Mesh {
+    let mut mesh = icosphere(1.0, levels);
+    let dirs = spiral_directions(waves);
     for p in &mut mesh.positions {
         let d = p.coords.normalize();
         let bump: f64 = dirs

@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::nalgebra::Point3;
 use fresco_core::{Mesh, NoProgress};
 use fresco_datasets::shapes;
 use fresco_param::agd::average_geodesic_distance;
@@ -17,14 +17,7 @@ use fresco_param::geodesic::{Method, SurfaceGraph};
 /// (a stand-in for the paper's bird: a body with a head, tail and legs).
 pub fn fingered_sphere(levels: u32, fingers: u32) -> Mesh {
     let mut mesh = shapes::icosphere(1.0, levels);
-    let dirs: Vec<Vector3<f64>> = (0..fingers)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / fingers as f64;
-            let phi = i as f64 * 2.399_963_229_728_653;
-            let s = (1.0 - z * z).sqrt();
-            Vector3::new(s * phi.cos(), s * phi.sin(), z)
-        })
-        .collect();
+    let dirs = shapes::spiral_directions(fingers);
     for p in &mut mesh.positions {
         let d = p.coords.normalize();
         let r: f64 = 1.0

@@ -51,14 +51,7 @@ fn separating_band_finds_the_jump_after_a_cone_and_a_tube() {
 /// A sphere with `n` long fingers (the example's shape at a test resolution).
 fn fingered(levels: u32, n: u32) -> (Mesh, Vec<Vector3<f64>>) {
     let mut mesh = shapes::icosphere(1.0, levels);
-    let dirs: Vec<Vector3<f64>> = (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let phi = i as f64 * 2.399_963_229_728_653;
-            let s = (1.0 - z * z).sqrt();
-            Vector3::new(s * phi.cos(), s * phi.sin(), z)
-        })
-        .collect();
+    let dirs = shapes::spiral_directions(n);
     for p in &mut mesh.positions {
         let d = p.coords.normalize();
         let r: f64 = 1.0
