@@ -7,11 +7,14 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum FormatError {
     /// The operating system refused (missing file, permissions, disk full).
-    #[error("{path}: {source}")]
+    ///
+    /// The OS error is part of the message and deliberately not also exposed as
+    /// `Error::source`: anyhow's `{:#}` prints the whole source chain, so a source here
+    /// made every CLI message say the OS error twice.
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A text format did not parse at a line (1-based).
     #[error("{path}:{line}: {message}")]
@@ -33,10 +36,10 @@ pub enum FormatError {
 }
 
 impl FormatError {
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
         FormatError::Io {
             path: path.into(),
-            source,
+            error,
         }
     }
     pub fn text(path: impl Into<PathBuf>, line: usize, message: impl Into<String>) -> Self {

@@ -301,3 +301,20 @@ fn missing_file_names_the_file() {
     assert!(matches!(e, FormatError::Io { .. }));
     assert!(e.to_string().contains("/nonexistent/model.obj"));
 }
+
+/// The OS error appears once in the full error chain a CLI prints with anyhow's `{:#}`:
+/// `FormatError::Io` keeps it in its message and does not also expose it as a source.
+#[test]
+fn io_error_chain_names_the_os_error_once() {
+    let path = std::path::Path::new("/nonexistent/fresco/none.obj");
+    let e = fresco_core::obj::read_obj(path).unwrap_err();
+    let mut chain = e.to_string();
+    let mut source = std::error::Error::source(&e);
+    while let Some(s) = source {
+        chain.push_str(&format!(": {s}"));
+        source = s.source();
+    }
+    let os = std::io::Error::from(std::io::ErrorKind::NotFound).to_string();
+    assert!(chain.contains("none.obj"), "{chain}");
+    assert_eq!(chain.matches("No such file").count(), 1, "{chain} ({os})");
+}
