@@ -11,7 +11,9 @@ use std::f32::consts::TAU;
 use fresco_core::photo::GreyImage;
 
 use crate::feature_file::{DESCRIPTOR_LEN, Descriptor};
-use crate::orientation::fast_atan2;
+#[cfg(target_arch = "x86_64")]
+use crate::orientation::has_avx2_fma;
+use crate::orientation::{SCRATCH, WindowScratch, fast_atan2, fast_exp};
 
 /// Spatial cells per side (Lowe: 4).
 const D: usize = 4;
@@ -25,6 +27,48 @@ const CLAMP: f32 = 0.2;
 /// The unit-length (L2) float descriptor of the keypoint at octave position (`x`, `y`), blur
 /// `sigma` (octave pixels), orientation `angle` (radians, image frame) in Gaussian image `g`.
 pub fn sift_descriptor(g: &GreyImage, x: f32, y: f32, sigma: f32, angle: f32) -> [f32; 128] {
+    let mut hist = SCRATCH.with(|s| {
+        let s = &mut *s.borrow_mut();
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA (checked above).
+            return unsafe { descriptor_histogram_avx2(g, x, y, sigma, angle, s) };
+        }
+        descriptor_histogram(g, x, y, sigma, angle, s)
+    });
+    normalise_clamp(&mut hist);
+    hist
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn descriptor_histogram_avx2(
+    g: &GreyImage,
+    x: f32,
+    y: f32,
+    sigma: f32,
+    angle: f32,
+    s: &mut WindowScratch,
+) -> [f32; 128] {
+    descriptor_histogram(g, x, y, sigma, angle, s)
+}
+
+/// Cells per side of the padded histogram: one extra cell on each side takes the trilinear
+/// spill-over of samples near the border (dropped afterwards), so binning needs no bounds tests.
+const DP: usize = D + 2;
+
+/// The raw (unnormalised) 4x4x8 histogram. Three passes over the window: gather the gradients
+/// and the rotated cell coordinates (vectorised), magnitudes, angles and Gaussian weights
+/// (vectorised), then the trilinear scatter (scalar, eight adds per sample).
+#[inline(always)]
+fn descriptor_histogram(
+    g: &GreyImage,
+    x: f32,
+    y: f32,
+    sigma: f32,
+    angle: f32,
+    s: &mut WindowScratch,
+) -> [f32; 128] {
     let cell = CELL_SCALE * sigma;
     // Half-diagonal of the (D + 1)-cell square that trilinear interpolation can touch.
     let radius = (cell * std::f32::consts::SQRT_2 * (D as f32 + 1.0) * 0.5).round() as isize;
@@ -32,67 +76,88 @@ pub fn sift_descriptor(g: &GreyImage, x: f32, y: f32, sigma: f32, angle: f32) ->
     let (cos_t, sin_t) = (angle.cos() / cell, angle.sin() / cell);
     let (cx, cy) = (x.round() as isize, y.round() as isize);
     let (w, h) = (g.width as isize, g.height as isize);
+    let mut out = [0f32; D * D * N];
+    // Samples need both neighbours: rows and columns 1..=size-2.
+    let (x0, x1) = ((cx - radius).max(1), (cx + radius).min(w - 2));
+    let (y0, y1) = ((cy - radius).max(1), (cy + radius).min(h - 2));
+    if x0 > x1 || y0 > y1 {
+        return out;
+    }
+    let nx = (x1 - x0 + 1) as usize;
+    let count = nx * (y1 - y0 + 1) as usize;
+    s.resize(count);
     // Gaussian weight with sigma = D/2 cells (Lowe: half the descriptor window).
     let inv_2s2 = -1.0 / (2.0 * (0.5 * D as f32).powi(2));
     let bins_per_rad = N as f32 / TAU;
-    let mut hist = [0f32; D * D * N];
-    for dy in -radius..=radius {
-        let py = cy + dy;
-        if py <= 0 || py >= h - 1 {
+    // Continuous cell coordinates with cell centres at integers 0..D-1.
+    let half = 0.5 * D as f32 - 0.5;
+    let dxs: Vec<f32> = (x0..=x1).map(|px| (px - cx) as f32).collect();
+    for (r, py) in (y0..=y1).enumerate() {
+        let p = py as usize;
+        let (row, above, below) = (g.row(p), g.row(p - 1), g.row(p + 1));
+        let dy = (py - cy) as f32;
+        let span = r * nx..(r + 1) * nx;
+        for (((((gx, gy), cb), rb), &dx), i) in s.a[span.clone()]
+            .iter_mut()
+            .zip(&mut s.b[span.clone()])
+            .zip(&mut s.c[span.clone()])
+            .zip(&mut s.d[span.clone()])
+            .zip(&dxs)
+            .zip(x0 as usize..x1 as usize + 1)
+        {
+            *gx = row[i + 1] - row[i - 1];
+            *gy = below[i] - above[i];
+            // Offset from the keypoint rotated by -angle, in cells.
+            *cb = cos_t * dx + sin_t * dy + half;
+            *rb = -sin_t * dx + cos_t * dy + half;
+        }
+    }
+    // a, b become the sample weight and the continuous orientation bin.
+    for (((gx, gy), cb), rb) in s.a[..count]
+        .iter_mut()
+        .zip(&mut s.b[..count])
+        .zip(&s.c[..count])
+        .zip(&s.d[..count])
+    {
+        let mag = (*gx * *gx + *gy * *gy).sqrt();
+        let (u, v) = (cb - half, rb - half);
+        let mut theta = fast_atan2(*gy, *gx) - angle;
+        theta = if theta < 0.0 { theta + TAU } else { theta };
+        *gx = mag * fast_exp((u * u + v * v) * inv_2s2);
+        *gy = theta * bins_per_rad;
+    }
+    let mut hist = [0f32; DP * DP * N];
+    for (((&wgt, &obin), &cbin), &rbin) in s.a[..count]
+        .iter()
+        .zip(&s.b[..count])
+        .zip(&s.c[..count])
+        .zip(&s.d[..count])
+    {
+        if cbin <= -1.0 || cbin >= D as f32 || rbin <= -1.0 || rbin >= D as f32 || wgt == 0.0 {
             continue;
         }
-        let row = g.row(py as usize);
-        let above = g.row(py as usize - 1);
-        let below = g.row(py as usize + 1);
-        for dx in -radius..=radius {
-            let px = cx + dx;
-            if px <= 0 || px >= w - 1 {
-                continue;
-            }
-            // Offset from the keypoint rotated by -angle, in cells.
-            let (fx, fy) = (dx as f32, dy as f32);
-            let u = cos_t * fx + sin_t * fy;
-            let v = -sin_t * fx + cos_t * fy;
-            // Continuous cell coordinates with cell centres at integers 0..D-1.
-            let cbin = u + 0.5 * D as f32 - 0.5;
-            let rbin = v + 0.5 * D as f32 - 0.5;
-            if cbin <= -1.0 || cbin >= D as f32 || rbin <= -1.0 || rbin >= D as f32 {
-                continue;
-            }
-            let p = px as usize;
-            let gx = row[p + 1] - row[p - 1];
-            let gy = below[p] - above[p];
-            let mag = (gx * gx + gy * gy).sqrt();
-            if mag == 0.0 {
-                continue;
-            }
-            let mut theta = fast_atan2(gy, gx) - angle;
-            if theta < 0.0 {
-                theta += TAU;
-            }
-            let obin = theta * bins_per_rad;
-            let wgt = mag * ((u * u + v * v) * inv_2s2).exp();
-            let (r0, c0, o0) = (rbin.floor(), cbin.floor(), obin.floor());
-            let (fr, fc, fo) = (rbin - r0, cbin - c0, obin - o0);
-            let (r0, c0, o0) = (r0 as isize, c0 as isize, o0 as isize);
-            for (ri, wr) in [(r0, 1.0 - fr), (r0 + 1, fr)] {
-                if ri < 0 || ri >= D as isize {
-                    continue;
-                }
-                for (ci, wc) in [(c0, 1.0 - fc), (c0 + 1, fc)] {
-                    if ci < 0 || ci >= D as isize {
-                        continue;
-                    }
-                    let base = (ri as usize * D + ci as usize) * N;
-                    let wrc = wgt * wr * wc;
-                    hist[base + (o0.rem_euclid(N as isize)) as usize] += wrc * (1.0 - fo);
-                    hist[base + ((o0 + 1).rem_euclid(N as isize)) as usize] += wrc * fo;
-                }
+        let (r0, c0, o0) = (rbin.floor(), cbin.floor(), obin.floor());
+        let (fr, fc, fo) = (rbin - r0, cbin - c0, obin - o0);
+        // r0, c0 in -1..=D-1: shifted by one into the padded grid. N is a power of two, so the
+        // circular orientation bins wrap with a mask (obin may round up to exactly N).
+        let base = ((r0 as isize + 1) as usize * DP + (c0 as isize + 1) as usize) * N;
+        let (o0, o1) = (o0 as usize & (N - 1), (o0 as usize + 1) & (N - 1));
+        let (w1, w0) = (wgt * fr, wgt * (1.0 - fr));
+        for (cell, wr) in [(base, w0), (base + DP * N, w1)] {
+            let (wc1, wc0) = (wr * fc, wr * (1.0 - fc));
+            for (at, wc) in [(cell, wc0), (cell + N, wc1)] {
+                hist[at + o0] += wc * (1.0 - fo);
+                hist[at + o1] += wc * fo;
             }
         }
     }
-    normalise_clamp(&mut hist);
-    hist
+    for r in 0..D {
+        for c in 0..D {
+            let src = ((r + 1) * DP + c + 1) * N;
+            out[(r * D + c) * N..(r * D + c + 1) * N].copy_from_slice(&hist[src..src + N]);
+        }
+    }
+    out
 }
 
 /// L2-normalise, clamp entries at 0.2, L2-normalise again (Lowe section 6.1).

@@ -1,0 +1,95 @@
+//! SIFT phase profile: `cargo run --release -p fresco-sfm --example sift_phases -- <photo>...
+//! [--runs N]`. For each photo prints one JSON line with the median (over N runs, default 5)
+//! seconds of every phase — decode, scale space (up-sampling + blurs), DoG + extrema,
+//! orientation, descriptor — and of the whole `extract_features` call (decode excluded), so
+//! the per-image figures of bench/sift.sh can be compared phase by phase.
+
+use std::time::Instant;
+
+use fresco_core::photo::load_photo;
+use fresco_sfm::descriptor::sift_descriptor;
+use fresco_sfm::dog::detect_extrema;
+use fresco_sfm::extract::{SiftConfig, extract_features};
+use fresco_sfm::orientation::dominant_orientations;
+use fresco_sfm::scale_space::build_scale_space;
+use rayon::prelude::*;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut runs = 5;
+    let mut photos = Vec::new();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if a == "--runs" {
+            runs = it.next().and_then(|s| s.parse().ok()).unwrap_or(5);
+        } else {
+            photos.push(a.clone());
+        }
+    }
+    let config = SiftConfig {
+        max_features: 0,
+        ..Default::default()
+    };
+    for path in &photos {
+        let mut t = vec![Vec::new(); 6];
+        let mut count = 0;
+        for _ in 0..runs {
+            let t0 = Instant::now();
+            let photo = load_photo(std::path::Path::new(path)).expect("readable photo");
+            t[0].push(t0.elapsed().as_secs_f64());
+            let grey = photo.grey;
+            let t1 = Instant::now();
+            let space = build_scale_space(&grey, &config.scale_space);
+            t[1].push(t1.elapsed().as_secs_f64());
+            let t2 = Instant::now();
+            let extrema = detect_extrema(&space, &config.detector);
+            t[2].push(t2.elapsed().as_secs_f64());
+            let t3 = Instant::now();
+            let oriented: Vec<(usize, f32)> = extrema
+                .par_iter()
+                .enumerate()
+                .flat_map_iter(|(i, e)| {
+                    let g = &space.octaves[e.octave].gaussians[e.layer];
+                    dominant_orientations(g, e.x, e.y, e.sigma_octave, &config.orientation)
+                        .into_iter()
+                        .map(move |a| (i, a))
+                })
+                .collect();
+            t[3].push(t3.elapsed().as_secs_f64());
+            let t4 = Instant::now();
+            let descriptors: Vec<[f32; 128]> = oriented
+                .par_iter()
+                .map(|&(i, a)| {
+                    let e = &extrema[i];
+                    let g = &space.octaves[e.octave].gaussians[e.layer];
+                    sift_descriptor(g, e.x, e.y, e.sigma_octave, a)
+                })
+                .collect();
+            t[4].push(t4.elapsed().as_secs_f64());
+            count = descriptors.len();
+            drop(space);
+            let t5 = Instant::now();
+            let f = extract_features(&grey, &config);
+            t[5].push(t5.elapsed().as_secs_f64());
+            assert_eq!(f.len(), count);
+        }
+        let m: Vec<f64> = t.into_iter().map(median).collect();
+        println!(
+            "{{\"photo\": \"{path}\", \"keypoints\": {count}, \"runs\": {runs}, \"decode\": {:.4}, \
+             \"scale_space\": {:.4}, \"dog_extrema\": {:.4}, \"orientation\": {:.4}, \
+             \"descriptor\": {:.4}, \"extract_features\": {:.4}, \"threads\": {}}}",
+            m[0],
+            m[1],
+            m[2],
+            m[3],
+            m[4],
+            m[5],
+            rayon::current_num_threads()
+        );
+    }
+}
