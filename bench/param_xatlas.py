@@ -3,7 +3,14 @@ Atlas.add_mesh + generate (no file I/O), writes the result as OBJ (positions via
 per-vertex UVs) for `fresco unwrap --measure`, and prints a JSON line with the timing and
 xatlas's own figures.
 
-usage: param_xatlas.py <in.ply> <out.obj> <atlas_size> <gutter>
+xatlas is called as users call it: resolution and padding given, texels per unit left for it
+to estimate. Its atlases then need not be exactly resolution x resolution (it returns its own
+width x height, and may make several): the UVs it returns are normalised to that size, and
+each atlas' UVs are shifted by its index along u in the OBJ so that `--measure` sees charts
+of different atlases apart; `--measure`'s utilisation (UV area over one unit square) is then
+divided by the atlas count, i.e. utilisation over all of xatlas's atlases.
+
+usage: param_xatlas.py <in.ply> <out.obj> <atlas_size> <gutter> [texels_per_unit]
 """
 import json
 import sys
@@ -25,9 +32,14 @@ def main():
     pack = xatlas.PackOptions()
     pack.resolution = atlas
     pack.padding = gutter
+    if len(sys.argv) > 5:
+        pack.texels_per_unit = float(sys.argv[5])
     a.generate(pack_options=pack)
     seconds = time.perf_counter() - t0
     vmapping, indices, uvs = a.get_mesh(0)
+    atlas_of_vertex, _chart = a.get_mesh_vertex_assignment(0)
+    uvs = np.array(uvs, dtype=np.float64)
+    uvs[:, 0] += atlas_of_vertex.astype(np.float64)
     with open(dst, "w") as f:
         f.write("# xatlas\n")
         for v in pos[vmapping]:
@@ -42,7 +54,8 @@ def main():
         "chart_count": a.chart_count,
         "width": a.width,
         "height": a.height,
-        "utilization": np.atleast_1d(a.utilization).astype(float).tolist(),
+        "texels_per_unit": float(a.texels_per_unit),
+        "utilization": [float(a.get_utilization(i)) for i in range(a.atlas_count)],
     }))
 
 

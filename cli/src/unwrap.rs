@@ -28,7 +28,7 @@ pub struct UnwrapArgs {
     #[arg(long)]
     pub texels_per_unit: Option<f64>,
     /// Charts whose L2 stretch stays above this are split.
-    #[arg(long, default_value_t = 1.1)]
+    #[arg(long, default_value_t = 1.02)]
     pub max_stretch: f64,
     /// Start from the Reeb-graph segmentation instead of connected components.
     #[arg(long)]

@@ -12,7 +12,8 @@
 //! Unwrapping (charts to a packed atlas): [`unwrap::unwrap`] (whole mesh) and
 //! [`unwrap::unwrap_charts`] (from a chart per face) write per-corner UVs and chart ids into
 //! the mesh; building blocks [`chart_mesh::ChartMesh`], [`harmonic::mean_value`] (fold-free
-//! fallback), [`lscm::lscm`] (conformal map), [`stretch::optimise`] (Sander's L2 stretch),
+//! fallback), [`lscm::lscm`] (conformal map), [`stretch::optimise_free`] (Sander's L2 stretch with
+//! the boundary free inside a [`scaffold`]),
 //! [`split::split_in_two`], [`pack::pack`]. [`metrics::measure`] scores any mesh's UVs
 //! (flips, overlaps, L2/L∞ stretch, angle distortion, utilisation, seams);
 //! [`chart_image::chart_image`] draws an atlas with a distortion checker.
@@ -32,6 +33,7 @@ pub mod lscm;
 pub mod metrics;
 pub mod pack;
 pub mod reeb;
+pub mod scaffold;
 pub mod split;
 pub mod stretch;
 pub mod unwrap;

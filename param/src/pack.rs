@@ -388,8 +388,8 @@ struct Bitmap {
     width: u32,
     words: usize,
     bits: Vec<u64>,
-    /// Free texels per row, for a quick reject.
-    free: Vec<u32>,
+    /// Longest run of free texels per row, for a quick reject (kept up to date on insert).
+    run: Vec<u32>,
     /// Lowest row that can still hold anything (rows above it are full).
     used_height: u32,
 }
@@ -401,13 +401,13 @@ impl Bitmap {
             width,
             words,
             bits: vec![0; words * height as usize],
-            free: vec![width; height as usize],
+            run: vec![width; height as usize],
             used_height: 0,
         }
     }
 
     fn height(&self) -> u32 {
-        self.free.len() as u32
+        self.run.len() as u32
     }
 
     /// Highest occupied column in `[a, b]` of row `y`.
@@ -429,12 +429,40 @@ impl Bitmap {
         None
     }
 
+    /// Longest run of clear bits in row `y` (word at a time over the runs).
+    fn longest_free_run(&self, y: u32) -> u32 {
+        let row = &self.bits[y as usize * self.words..(y as usize + 1) * self.words];
+        let bit = |c: u32| row[(c / 64) as usize] >> (c % 64) & 1 == 1;
+        // Next column >= c whose bit equals `set`, or the width.
+        let next = |mut c: u32, set: bool| -> u32 {
+            while c < self.width {
+                let w = row[(c / 64) as usize];
+                let w = (if set { w } else { !w }) >> (c % 64);
+                if w != 0 {
+                    return (c + w.trailing_zeros()).min(self.width);
+                }
+                c = (c / 64 + 1) * 64;
+            }
+            self.width
+        };
+        let (mut best, mut c) = (0, 0);
+        while c < self.width {
+            let start = if bit(c) { next(c, false) } else { c };
+            if start >= self.width {
+                break;
+            }
+            let end = next(start, true);
+            best = best.max(end - start);
+            c = end;
+        }
+        best
+    }
+
     fn set_run(&mut self, y: u32, a: u32, b: u32) {
         let base = y as usize * self.words;
         for c in a..=b {
             self.bits[base + (c / 64) as usize] |= 1u64 << (c % 64);
         }
-        self.free[y as usize] -= b - a + 1;
     }
 
     /// First position (lowest row, then column) where the dilated spans fit.
@@ -443,12 +471,28 @@ impl Bitmap {
         if dw > self.width || dh > self.height() {
             return None;
         }
-        'rows: for y in 0..=self.height() - dh {
+        // The narrowest span: an atlas row with fewer free texels than that cannot be under
+        // any row of the chart, so when every row of the chart has a span, positions whose
+        // rows include it are skipped at once (full rows cost one test per chart, not dh).
+        let narrowest = spans
+            .iter()
+            .flatten()
+            .map(|(lo, hi)| hi - lo + 1)
+            .min()
+            .unwrap_or(0);
+        let solid = spans.iter().all(Option::is_some);
+        let mut y = 0u32;
+        'rows: while y + dh <= self.height() {
             // Quick reject: a row with fewer free texels than the span needs.
             for (r, s) in spans.iter().enumerate() {
                 if let Some((lo, hi)) = s
-                    && self.free[y as usize + r] < hi - lo + 1
+                    && self.run[y as usize + r] < hi - lo + 1
                 {
+                    y += if solid && self.run[y as usize + r] < narrowest {
+                        r as u32 + 1
+                    } else {
+                        1
+                    };
                     continue 'rows;
                 }
             }
@@ -463,6 +507,7 @@ impl Bitmap {
                 }
                 return Some((x, y));
             }
+            y += 1;
         }
         None
     }
@@ -478,7 +523,6 @@ impl Bitmap {
                         let ty = y + g + c;
                         self.bits[ty as usize * self.words + (tx / 64) as usize] |=
                             1u64 << (tx % 64);
-                        self.free[ty as usize] -= 1;
                     }
                 }
             }
@@ -489,7 +533,11 @@ impl Bitmap {
                 }
             }
         }
-        let dh = if turned { r.width } else { r.height } + 2 * g;
+        let rows = if turned { r.width } else { r.height };
+        for row in y + g..y + g + rows {
+            self.run[row as usize] = self.longest_free_run(row);
+        }
+        let dh = rows + 2 * g;
         self.used_height = self.used_height.max(y + dh);
     }
 }
