@@ -319,6 +319,25 @@ impl Runs {
     }
 }
 
+/// The lattice points `cells + [lo, hi]^3`, clipped to `[0, max]^3`.
+pub fn dilate(cells: &SortedKeys, lo: i64, hi: i64, max: i64) -> SortedKeys {
+    Runs::from_keys(cells).dilate(lo, hi, max).to_keys()
+}
+
+/// For each key of `a`, whether it is in `b` (both sorted).
+pub fn membership(a: &SortedKeys, b: &SortedKeys) -> Vec<bool> {
+    let mut j = 0;
+    a.keys
+        .iter()
+        .map(|&k| {
+            while j < b.keys.len() && b.keys[j] < k {
+                j += 1;
+            }
+            j < b.keys.len() && b.keys[j] == k
+        })
+        .collect()
+}
+
 /// The full lattice `[0, n]^3` as sorted keys.
 fn full_lattice(n: i64) -> SortedKeys {
     let mut keys = Vec::with_capacity(((n + 1) * (n + 1) * (n + 1)) as usize);

@@ -7,7 +7,8 @@
 //! ```
 //!
 //! over the unit cube the samples are scaled into, where `V = sum_p A_p n_p K_p` is the
-//! normal field splatted with a unit-integral trilinear kernel at the finest depth (so
+//! normal field splatted with a unit-integral kernel (quadratic B-spline weights on the 27
+//! lattice vertices around the sample, at a level set by the local sampling density; so
 //! `int V = sum_p A_p n_p`, the integral of the normal over the surface) and `A_p` is the
 //! surface area a sample stands for (`1 / sampling density`, estimated below). Weighting by
 //! area is SPSR's `Area(P) / sum w * w(p)` with `w(p) = A_p`: samples in dense regions do not
@@ -20,7 +21,11 @@
 //! the iso-value: the torus closed up in the tests.
 //!
 //! Discretisation: degree-1 B-splines on every level of the octree (`bspline.rs`,
-//! `octree.rs`); `chi = sum_d sum_{i in S_d} x_{d,i} B_{d,i}`. The normal equations are
+//! `octree.rs`); `chi = sum_d sum_{i in S_d} x_{d,i} B_{d,i}`. The octree is only as deep as
+//! the sampling density supports: each sample has a leaf depth (the level where a node holds
+//! about `samples_per_node` samples); a level's unknowns are solved for only around samples
+//! whose leaf reaches it, and the requested depth is an upper bound (PoissonRecon's adaptive
+//! tree). The normal equations are
 //! `(L + alpha S) x = b` with `L_ij = int grad B_i . grad B_j`, `S_ij = sum_p A_p B_i(p)
 //! B_j(p)`, `b_i = int grad B_i . V`.
 //!
@@ -94,6 +99,9 @@ pub struct LevelStats {
     /// Unknowns (active vertices) and ghost vertices of the level.
     pub active: usize,
     pub ghost: usize,
+    /// Unknowns solved for: those around samples whose leaf depth reaches the level (the
+    /// others keep the coarser levels' function).
+    pub solved: usize,
     pub cg: CgReport,
 }
 
@@ -102,6 +110,8 @@ pub struct LevelStats {
 pub struct PoissonStats {
     /// Samples used, and samples dropped for a non-finite position or a zero/non-finite normal.
     pub samples: usize,
+    /// Finest depth used: the requested depth, or less when no sample's density reaches it.
+    pub depth: u32,
     pub dropped: usize,
     pub levels: Vec<LevelStats>,
     /// The level set extracted (of the unit-cube indicator).
@@ -144,10 +154,11 @@ pub enum PoissonError {
     InvalidConfig(String),
 }
 
-/// Samples are splatted one level coarser than their density depth: the trilinear splat is
-/// narrower than PoissonRecon's quadratic one, and at the density depth itself the normal
-/// field stays grainy. Measured on a 200k-sample sphere at depth 8: radial error std
-/// 1.47e-4 at offset 0, 1.01e-4 at offset 1 (Open3D: 0.66e-4).
+/// Samples are splatted one level coarser than their density depth: with the degree-1 basis
+/// the normal field at the density depth itself stays grainy. Measured on a 200k-sample
+/// sphere at depth 8 with the 27-vertex quadratic splat: radial error std 1.16e-4 at
+/// offset 0, 8.5e-5 at 0.5, 7.05e-5 at 1 (Open3D: 6.6e-5); at offset 1.5 the Chamfer
+/// distance grows again (0.0018% against 0.0015% of the diagonal) as V blurs the shape.
 const SPLAT_DEPTH_OFFSET: f64 = 1.0;
 
 /// Smallest number of samples accepted.
@@ -549,19 +560,68 @@ pub fn reconstruct(
         let v = (p - origin) / size;
         [v.x, v.y, v.z]
     };
-    let depth = cfg.depth;
-    let full_depth = cfg.full_depth.min(depth);
+    let requested = cfg.depth;
+    let full_depth = cfg.full_depth.min(requested);
+    let unit: Vec<[f64; 3]> = pts.par_iter().map(to_unit).collect();
+
+    // Sampling density, per-sample area and leaf depth.
+    // The density depth t = log4(sigma / samples_per_node): the depth at which a node crossing
+    // the surface holds `samples_per_node` samples. A sample's leaf, the finest level that
+    // holds functions around it, is the level nearest its density depth: round(t), i.e.
+    // a level is refined where its nodes hold at least samples_per_node / 2 samples.
+    // PoissonRecon refines to ceil(t) (down to samples_per_node / 4) but with the smoother
+    // degree-2 basis; with degree 1, the extra level's functions follow the individual
+    // samples. Measured on the 200k-sample sphere at depth 9 (t ~ 7.8, bench/poisson.sh):
+    // signed-distance std 1.07e-4 with every level refined where there are samples,
+    // 9.1e-5 with ceil(t), 7.6e-5 with round(t).
+    let density_depth_of = |sg: f64| 0.5 * (sg / cfg.samples_per_node).log2();
+    let estimate = |kernel_depth: u32| -> (Density, Vec<f64>) {
+        let density = Density::build(kernel_depth, &unit);
+        let sigma = unit
+            .par_iter()
+            .map(|&u| density.sigma(u).max(1e-300))
+            .collect();
+        (density, sigma)
+    };
+    // PoissonRecon's kernel depth is two levels above the finest; when the samples are too
+    // sparse for the requested depth, that kernel holds a handful of samples and the
+    // estimate is noisy (the kernel's 3x3 cells hold ~4 samples for 20k on the sphere at
+    // depth 9), so it is redone two levels above the median sample's leaf.
+    let mut kernel_depth = requested.saturating_sub(2).clamp(1, 8);
+    let (mut density, mut sigma) = estimate(kernel_depth);
+    {
+        let mut t: Vec<f64> = sigma.par_iter().map(|&sg| density_depth_of(sg)).collect();
+        let mid = t.len() / 2;
+        let median = *t.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let data_depth = (median.round().max(0.0) as u32).clamp(full_depth, requested);
+        let k = data_depth.saturating_sub(2).clamp(1, 8);
+        if k < kernel_depth {
+            kernel_depth = k;
+            (density, sigma) = estimate(kernel_depth);
+        }
+    }
+    let density_depth_u: Vec<f64> = sigma.par_iter().map(|&sg| density_depth_of(sg)).collect();
+    let leaf_u: Vec<u32> = density_depth_u
+        .par_iter()
+        .map(|&t| (t.round().max(0.0) as u32).clamp(full_depth, requested))
+        .collect();
+    // The requested depth is an upper bound: levels no sample's leaf reaches are left out
+    // (the mesh is then extracted at the finest level used, as PoissonRecon's adaptive tree
+    // does).
+    let depth = leaf_u
+        .iter()
+        .copied()
+        .max()
+        .unwrap_or(requested)
+        .max(full_depth.max(2).min(requested));
     // Sort samples by their finest cell for memory locality.
-    let mut order: Vec<(u64, u32)> = pts
+    let mut order: Vec<(u64, u32)> = unit
         .par_iter()
         .enumerate()
-        .map(|(i, p)| (cell_key(to_unit(p), depth), i as u32))
+        .map(|(i, &u)| (cell_key(u, depth), i as u32))
         .collect();
     order.par_sort_unstable();
-    let samples: Vec<[f64; 3]> = order
-        .iter()
-        .map(|&(_, i)| to_unit(&pts[i as usize]))
-        .collect();
+    let samples: Vec<[f64; 3]> = order.iter().map(|&(_, i)| unit[i as usize]).collect();
     let snormals: Vec<[f64; 3]> = order
         .iter()
         .map(|&(_, i)| {
@@ -569,14 +629,16 @@ pub fn reconstruct(
             [n.x, n.y, n.z]
         })
         .collect();
-
-    // Sampling density and per-sample area.
-    let kernel_depth = depth.saturating_sub(2).clamp(1, 8);
-    let density = Density::build(kernel_depth, &samples);
-    let area: Vec<f64> = samples
-        .par_iter()
-        .map(|&u| 1.0 / density.sigma(u).max(1e-300))
+    let area: Vec<f64> = order
+        .iter()
+        .map(|&(_, i)| 1.0 / sigma[i as usize])
         .collect();
+    let density_depth: Vec<f64> = order
+        .iter()
+        .map(|&(_, i)| density_depth_u[i as usize])
+        .collect();
+    let leaf_depth: Vec<u32> = order.iter().map(|&(_, i)| leaf_u[i as usize]).collect();
+    drop((unit, sigma, density_depth_u, leaf_u));
 
     // Octree levels: sample cells per depth, then the band (or full) vertex sets.
     let mut cells: Vec<SortedKeys> = vec![SortedKeys::default(); depth as usize + 1];
@@ -615,17 +677,19 @@ pub fn reconstruct(
     // floor(t_p) and floor(t_p) + 1 so that V changes smoothly with the density. Splatting
     // sparse samples at the finest depth would make V a field of isolated spikes and the
     // surface bumpy (measured: 2.5x the Chamfer error of splatting at the density depth).
-    // V_l's coefficients in level l's hats: sum_p omega_{p,l} A_p n_p B_c(p) / h_l^3
-    // (unit-integral splat, so int V = sum_p A_p n_p).
+    // V_l's coefficients in level l's hats: sum_p omega_{p,l} A_p n_p w_c(p) / h_l^3 with
+    // w_c(p) the quadratic B-spline weights of the 27 lattice vertices around p (centred
+    // on the vertex nearest p; a partition of unity, so int V = sum_p A_p n_p). The
+    // trilinear weights of p's own cell (8 vertices) made a kernel whose shape depends on
+    // where p falls in its cell; the quadratic weights are C1 in p and spread it over
+    // 3 cells: on the depth-8 sphere, torus and blob (200k samples) the Chamfer distance
+    // fell from 0.0021-0.0025% to 0.0015-0.0018% of the diagonal.
     let finest = &levels[depth as usize];
     let ring = octree::ring27();
     let corners = octree::corners8();
-    let splat_depth: Vec<f64> = area
+    let splat_depth: Vec<f64> = density_depth
         .par_iter()
-        .map(|&a| {
-            (0.5 * (1.0 / (a * cfg.samples_per_node)).log2() - SPLAT_DEPTH_OFFSET)
-                .clamp(0.0, depth as f64)
-        })
+        .map(|&t| (t - SPLAT_DEPTH_OFFSET).clamp(0.0, depth as f64))
         .collect();
     let splat_weight = |s: usize, l: u32| -> f64 {
         let t = splat_depth[s];
@@ -649,33 +713,68 @@ pub fn reconstruct(
             if used.is_empty() {
                 return Vec::new();
             }
-            let keys: Vec<u64> = used.iter().map(|&s| cell_key(samples[s], l)).collect();
-            let ls = LevelSamples::new(level, &cells[l as usize], &keys);
             let mut v = vec![[0.0f64; 3]; level.len()];
+            let n = level.n();
+            let near = |u: [f64; 3]| -> ([i64; 3], [[f64; 3]; 3]) {
+                let mut c = [0i64; 3];
+                let mut w = [[0.0; 3]; 3];
+                for a in 0..3 {
+                    let x = u[a] * n as f64;
+                    let r = (x.round() as i64).clamp(0, n);
+                    c[a] = r;
+                    w[a] = bspline::quadratic((x - r as f64).clamp(-0.5, 0.5));
+                }
+                (c, w)
+            };
+            let keys: Vec<u64> = used
+                .iter()
+                .map(|&s| octree::pack(near(samples[s]).0))
+                .collect();
+            let verts = SortedKeys::from_unsorted(keys.clone());
+            let table = level.lookup_from(&verts, Map::Same, &ring);
             for (i, &s) in used.iter().enumerate() {
                 let f = splat_weight(s, l) * area[s] / (h * h * h);
-                let w = cell_weights(samples[s], l);
-                for (k, &c) in ls.corners_of(i).iter().enumerate() {
+                let (_, w) = near(samples[s]);
+                let vi = verts.find(keys[i]).expect("indexed");
+                for (o, off) in ring.iter().enumerate() {
+                    let j = table[vi * 27 + o];
+                    let wk = w[0][(off[0] + 1) as usize]
+                        * w[1][(off[1] + 1) as usize]
+                        * w[2][(off[2] + 1) as usize];
+                    if j == MISSING {
+                        // Outside the cube: only at the boundary, where the weight is lost.
+                        continue;
+                    }
                     for a in 0..3 {
-                        v[c as usize][a] += f * snormals[s][a] * w[k];
+                        v[j as usize][a] += f * snormals[s][a] * wk;
                     }
                 }
             }
             v
         })
         .collect();
+    // Screening by leaf depth: a sample constrains chi at its leaf and every coarser level,
+    // like PoissonRecon's point data accumulated into every ancestor of the sample's leaf;
+    // finer levels see no constraint from it, and their functions around it are not solved
+    // for (the solve mask below).
+    let screen_area = |l: u32| -> Vec<f64> {
+        area.par_iter()
+            .zip(leaf_depth.par_iter())
+            .map(|(&a, &leaf)| if l <= leaf { a } else { 0.0 })
+            .collect()
+    };
     // b_d = int grad B_d . V = (part from V_{<=d}) + (part from V_{>d}). The first is the
     // divergence stencil applied to W_d, V_{<=d} prolonged exactly onto level d (in the
     // solve below); the second, c_d, is restricted from the finer levels' own parts:
     // c_{d-1} = R (c_d + f_d), f_d = int grad B_d . V_d, which is supported in S_d (V_d lives
     // on sample-cell corners), so the restriction is exact.
-    let div_row = |level: &Level, table: &[u32], i: usize, w: &[[f64; 3]]| -> f64 {
-        let c = octree::unpack(level.active.keys[i]);
+    let div_row_key = |level: &Level, key: u64, row: &[u32], w: &[[f64; 3]]| -> f64 {
+        let c = octree::unpack(key);
         let n = level.n();
         let h = 1.0 / n as f64;
         let mut s = 0.0;
         for (o, off) in ring.iter().enumerate() {
-            let j = table[i * 27 + o];
+            let j = row[o];
             if j == MISSING || w.is_empty() {
                 continue;
             }
@@ -685,6 +784,9 @@ pub fn reconstruct(
         }
         s * h * h
     };
+    let div_row = |level: &Level, table: &[u32], i: usize, w: &[[f64; 3]]| -> f64 {
+        div_row_key(level, level.active.keys[i], &table[i * 27..i * 27 + 27], w)
+    };
     // The finest level's neighbour table, built once for the right-hand side and the solve.
     let mut finest_ring = Some(finest.lookup_from(&finest.active, Map::Same, &ring));
     let mut finer_part: Vec<Vec<f64>> = vec![Vec::new(); depth as usize + 1];
@@ -692,6 +794,21 @@ pub fn reconstruct(
     for l in (1..=depth as usize).rev() {
         let level = &levels[l];
         let mut acc = finer_part[l].clone();
+        // With the 27-vertex splat V_l reaches the band's edge, so its divergence also has
+        // rows on the ghost vertices: those feed the coarser levels through the restriction.
+        acc.resize(level.len(), 0.0);
+        if !vcoef[l].is_empty() && !level.ghost.is_empty() {
+            let gt = level.lookup_from(&level.ghost, Map::Same, &ring);
+            let na = level.active_len();
+            acc[na..].par_iter_mut().enumerate().for_each(|(i, a)| {
+                *a += div_row_key(
+                    level,
+                    level.ghost.keys[i],
+                    &gt[i * 27..i * 27 + 27],
+                    &vcoef[l],
+                )
+            });
+        }
         if !vcoef[l].is_empty() {
             let own_table;
             let table: &[u32] = if l == depth as usize {
@@ -700,13 +817,15 @@ pub fn reconstruct(
                 own_table = level.lookup_from(&level.active, Map::Same, &ring);
                 &own_table
             };
-            acc.par_iter_mut()
+            let na = level.active_len();
+            acc[..na]
+                .par_iter_mut()
                 .enumerate()
                 .for_each(|(i, a)| *a += div_row(level, table, i, &vcoef[l]));
         }
         let coarse = &levels[l - 1];
         let table = level.lookup_from(&coarse.active, Map::ToFine, &ring);
-        let nf = level.active_len();
+        let nf = acc.len();
         finer_part[l - 1] = (0..coarse.active_len())
             .into_par_iter()
             .map(|j| {
@@ -778,47 +897,90 @@ pub fn reconstruct(
                 }
             }
         }
-        let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
-        let sys = LevelSystem::new(
-            level,
-            &cells[d as usize],
-            &samples,
-            &sample_keys,
-            &area,
-            alpha,
-            &ring,
-            if d == depth { finest_ring.take() } else { None },
-        );
-        // r = b - (h L + alpha S) z over the active vertices (ghost z included), with
-        // b = c_d + div(W_d).
-        let mut r = vec![0.0; level.active_len()];
-        sys.apply(&z, &mut r, true);
-        r.par_iter_mut()
-            .zip(finer_part[d as usize].par_iter())
-            .enumerate()
-            .for_each(|(i, (ri, ci))| *ri = ci + div_row(level, &sys.ring, i, &wd) - *ri);
-        let diag = sys.diagonal();
-        let mut x = vec![0.0; level.active_len()];
-        let iters = if level.full {
-            cfg.coarse_cg_iterations
+        // Unknowns solved for: the band around the cells of the samples whose leaf reaches
+        // this level (all of them on full levels).
+        let mask: Option<Vec<bool>> = if level.full {
+            None
         } else {
-            cfg.cg_iterations
+            let keys: Vec<u64> = (0..samples.len())
+                .into_par_iter()
+                .filter(|&s| leaf_depth[s] >= d)
+                .map(|s| cell_key(samples[s], d))
+                .collect();
+            let supported = SortedKeys::from_unsorted(keys);
+            if supported.len() == cells[d as usize].len() {
+                None
+            } else {
+                let band = octree::dilate(&supported, -1, 2, level.n());
+                Some(octree::membership(&level.active, &band))
+            }
         };
-        let report = solver::conjugate_gradient(
-            &|v: &[f64], out: &mut [f64]| sys.apply(v, out, false),
-            &diag,
-            &r,
-            &mut x,
-            iters,
-            cfg.cg_tolerance,
-        );
-        for (zi, xi) in z.iter_mut().zip(&x) {
-            *zi += xi;
+        let solved = mask
+            .as_ref()
+            .map_or(level.active_len(), |m| m.iter().filter(|&&b| b).count());
+        let mut report = CgReport::default();
+        if solved > 0 {
+            let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
+            let sys = LevelSystem::new(
+                level,
+                &cells[d as usize],
+                &samples,
+                &sample_keys,
+                &screen_area(d),
+                alpha,
+                &ring,
+                if d == depth { finest_ring.take() } else { None },
+            );
+            // r = b - (h L + alpha S) z over the active vertices (ghost z included), with
+            // b = c_d + div(W_d); zero on the unknowns not solved for, and the operator's
+            // rows there zeroed too, so CG stays in the solved subspace.
+            let mut r = vec![0.0; level.active_len()];
+            sys.apply(&z, &mut r, true);
+            r.par_iter_mut()
+                .zip(finer_part[d as usize].par_iter())
+                .enumerate()
+                .for_each(|(i, (ri, ci))| *ri = ci + div_row(level, &sys.ring, i, &wd) - *ri);
+            let apply_masked = |v: &[f64], out: &mut [f64]| {
+                sys.apply(v, out, false);
+                if let Some(m) = &mask {
+                    out.par_iter_mut().zip(m.par_iter()).for_each(|(o, &keep)| {
+                        if !keep {
+                            *o = 0.0;
+                        }
+                    });
+                }
+            };
+            if let Some(m) = &mask {
+                r.par_iter_mut().zip(m.par_iter()).for_each(|(ri, &keep)| {
+                    if !keep {
+                        *ri = 0.0;
+                    }
+                });
+            }
+            let diag = sys.diagonal();
+            let mut x = vec![0.0; level.active_len()];
+            let iters = if level.full {
+                cfg.coarse_cg_iterations
+            } else {
+                cfg.cg_iterations
+            };
+            report = solver::conjugate_gradient(
+                &apply_masked,
+                &diag,
+                &r,
+                &mut x,
+                iters,
+                cfg.cg_tolerance,
+            );
+            for (zi, xi) in z.iter_mut().zip(&x) {
+                *zi += xi;
+            }
         }
         level_stats.push(LevelStats {
             depth: d,
             active: level.active_len(),
             ghost: level.ghost.len(),
+            solved,
             cg: report,
         });
         ys.push(z);
@@ -916,6 +1078,7 @@ pub fn reconstruct(
         vertex_density,
         stats: PoissonStats {
             samples: samples.len(),
+            depth,
             dropped,
             levels: level_stats,
             iso_value: iso,
