@@ -18,9 +18,9 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use fresco_core::{
-    CamFromWorld, Camera, Image, Point3D, Progress, Reconstruction, Rigid3, TrackElement,
+    CamFromWorld, Camera, Image, Point3D, Progress, Reconstruction, Rigid3, Sim3, TrackElement,
 };
-use nalgebra::{Matrix3, Point2, SMatrix, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, SMatrix, UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
 use crate::bundle::{BundleConfig, BundleError, BundleSetup, Gauge, bundle_adjust};
@@ -92,8 +92,24 @@ pub struct MapperConfig {
     /// Most models built. Default 10.
     pub max_models: usize,
     /// The initial intrinsics are trusted (a K file): the focal length is not searched in
-    /// PnP. Default false (only a prior).
+    /// PnP and the intrinsics stay fixed in every adjustment. Default false (only a prior).
     pub calibrated: bool,
+    /// When no image registers any more, the model is adjusted globally, retriangulated, and
+    /// every unregistered image is tried again accepting this many PnP inliers (COLMAP lowers
+    /// its threshold the same way on retry). Default 15: 5 minimal P3P samples' worth, and the
+    /// pose must also satisfy `retry_min_inlier_ratio` and explain those inliers within
+    /// `filter_max_error_px` after refinement, which a pose fitted to a few mismatches cannot.
+    pub retry_min_inliers: usize,
+    /// Smallest inlier fraction of a relaxed registration. Default 0.5.
+    pub retry_min_inlier_ratio: f64,
+    /// Fewest common points, consistent with one similarity, for two models to be merged
+    /// (at least half of their common points must be). Default 10: three times the minimal
+    /// sample, each point checked by reprojection in at least two images of each model.
+    pub merge_min_points: usize,
+    /// Largest reprojection error of a common point moved into the other model, pixels.
+    /// Default 8: the two models have not been adjusted together yet, so their drift adds to
+    /// the 4 px kept after adjustment.
+    pub merge_max_error_px: f64,
 }
 
 impl Default for MapperConfig {
@@ -113,6 +129,10 @@ impl Default for MapperConfig {
             min_model_images: 3,
             max_models: 10,
             calibrated: false,
+            retry_min_inliers: 15,
+            retry_min_inlier_ratio: 0.5,
+            merge_min_points: 6,
+            merge_max_error_px: 8.0,
         }
     }
 }
@@ -609,8 +629,9 @@ impl<'a> Builder<'a> {
         ranked
     }
 
-    /// Registers `image_id` by PnP; true on success.
-    fn register(&mut self, image_id: u32) -> bool {
+    /// Registers `image_id` by PnP; true on success. `relaxed`: the retry after a global
+    /// adjustment, with fewer inliers accepted (see [`MapperConfig::retry_min_inliers`]).
+    fn register(&mut self, image_id: u32, relaxed: bool) -> bool {
         let inp = self.image_input(image_id);
         let mut pixels = Vec::new();
         let mut world = Vec::new();
@@ -636,15 +657,64 @@ impl<'a> Builder<'a> {
                 .images
                 .values()
                 .any(|im| im.camera_id == inp.camera_id);
-        let pnp = PnpConfig {
+        let mut pnp = PnpConfig {
             estimate_focal: !camera_known,
             refine_intrinsics: !camera_known,
             seed: image_id as u64,
             ..self.config.pnp.clone()
         };
-        let Ok(result) = estimate_pose(&camera, &pixels, &world, &pnp) else {
-            return false;
+        if relaxed && camera_known {
+            pnp.min_inliers = pnp.min_inliers.min(self.config.retry_min_inliers);
+            pnp.min_inlier_ratio = pnp.min_inlier_ratio.max(self.config.retry_min_inlier_ratio);
+        }
+        let result = match estimate_pose(&camera, &pixels, &world, &pnp) {
+            Ok(r) => r,
+            Err(e) => {
+                tracing::debug!(
+                    "image {image_id}: not registered{}: {e}",
+                    if relaxed { " (relaxed)" } else { "" }
+                );
+                return false;
+            }
         };
+        // The relaxed acceptance asks, instead of a raw count at the coarse RANSAC threshold,
+        // that the refined pose explains its inliers as well as the model's points are
+        // explained (`filter_max_error_px`): a wrong pose from few correspondences fits only
+        // the handful it was drawn from.
+        let tight = if relaxed {
+            let cam = Camera {
+                params: result.camera_params.clone(),
+                ..camera.clone()
+            };
+            let n = pixels
+                .iter()
+                .zip(&world)
+                .filter(|(px, w)| {
+                    let xc =
+                        result.cam_from_world.0.rotation * *w + result.cam_from_world.0.translation;
+                    cam.image_from_cam(&xc.into())
+                        .is_some_and(|p| (p.coords - *px).norm() <= self.config.filter_max_error_px)
+                })
+                .count();
+            if n < pnp.min_inliers || (n as f64) < pnp.min_inlier_ratio * pixels.len() as f64 {
+                tracing::debug!(
+                    "image {image_id}: relaxed pose rejected: {n} of {} correspondences within {} px",
+                    pixels.len(),
+                    self.config.filter_max_error_px
+                );
+                return false;
+            }
+            n
+        } else {
+            result.num_inliers
+        };
+        tracing::debug!(
+            "image {image_id}: registered{} with {} of {} correspondences ({tight} tight), {:.2} px",
+            if relaxed { " (relaxed)" } else { "" },
+            result.num_inliers,
+            pixels.len(),
+            result.mean_error_px
+        );
         if !camera_known {
             let mut cam = camera.clone();
             cam.params = result.camera_params.clone();
@@ -654,14 +724,47 @@ impl<'a> Builder<'a> {
         true
     }
 
+    /// Tries the unregistered images, most visible points first; the first that registers.
+    fn register_next(&mut self, relaxed: bool) -> Option<u32> {
+        for (id, _) in self.next_images() {
+            if self.register(id, relaxed) {
+                return Some(id);
+            }
+            self.failed.insert(id);
+        }
+        None
+    }
+
     fn global_ba(&mut self, gauge: (u32, u32)) -> Result<(), MapperError> {
         let setup = BundleSetup {
             gauge: Gauge::Pair(gauge.0, gauge.1),
             ..BundleSetup::global(&self.rec)
         };
-        bundle_adjust(&mut self.rec, &setup, &self.config.bundle)?;
+        let summary = bundle_adjust(&mut self.rec, &setup, &bundle_config(self.config))?;
+        tracing::debug!(
+            "global adjustment of {} images, {} points: {:?}; cameras {:?}",
+            self.rec.images.len(),
+            self.rec.points3d.len(),
+            summary.termination,
+            self.rec
+                .cameras
+                .values()
+                .map(|c| (c.id, &c.params))
+                .collect::<Vec<_>>()
+        );
         Ok(())
     }
+}
+
+/// The adjustment settings: a calibrated camera (K file) keeps its focal length and principal
+/// point; its distortion, which a K file does not give, is still refined if the model has one.
+fn bundle_config(config: &MapperConfig) -> BundleConfig {
+    let mut bundle = config.bundle.clone();
+    if config.calibrated {
+        bundle.refine_focal = false;
+        bundle.refine_principal_point = false;
+    }
+    bundle
 }
 
 /// Result of trying one initial pair.
@@ -688,7 +791,7 @@ fn build_model(
     image_index: &HashMap<u32, usize>,
     used: &BTreeSet<u32>,
     progress: &dyn Progress,
-) -> Result<Result<Reconstruction, Degeneracy>, MapperError> {
+) -> Result<Result<Model, Degeneracy>, MapperError> {
     // Candidate initial pairs: both images unused, enough inliers.
     let mut candidates: Vec<&MapperPair> = input
         .pairs
@@ -751,17 +854,35 @@ fn build_model(
         used,
         failed: BTreeSet::new(),
     };
-    let mut last_global = b.rec.images.len();
     progress.advance(2);
+    grow(&mut b, gauge, progress)?;
+    Ok(Ok(Model { rec: b.rec, gauge }))
+}
+
+/// A model and the two images that fix its gauge in global adjustments.
+struct Model {
+    rec: Reconstruction,
+    gauge: (u32, u32),
+}
+
+/// Registers images into the model until none fits, then adjusts it globally (step 3 and 4 of
+/// the module documentation).
+fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(), MapperError> {
+    let config = b.config;
+    let mut last_global = b.rec.images.len();
     loop {
-        let candidates = b.next_images();
-        let mut registered = None;
-        for (id, _) in candidates {
-            if b.register(id) {
-                registered = Some(id);
-                break;
+        let mut registered = b.register_next(false);
+        if registered.is_none() {
+            // Nothing registers at the normal thresholds: adjust everything, retriangulate
+            // with the improved poses, and try every image again with relaxed thresholds.
+            if b.rec.images.len() > last_global {
+                b.global_ba(gauge)?;
+                b.filter_points(None);
+                b.retriangulate();
+                last_global = b.rec.images.len();
             }
-            b.failed.insert(id);
+            b.failed.clear();
+            registered = b.register_next(true);
         }
         let Some(id) = registered else { break };
         progress.advance(1);
@@ -769,7 +890,7 @@ fn build_model(
         b.extend_and_triangulate(id);
         let setup = BundleSetup::local(&b.rec, id, config.local_ba_images);
         let local_images = setup.images.clone();
-        bundle_adjust(&mut b.rec, &setup, &config.bundle)?;
+        bundle_adjust(&mut b.rec, &setup, &bundle_config(config))?;
         b.filter_points(Some(&local_images));
         if b.rec.images.len() as f64 >= config.global_ba_growth * last_global as f64 {
             b.global_ba(gauge)?;
@@ -788,7 +909,250 @@ fn build_model(
     for p in b.rec.points3d.values_mut() {
         p.track.sort_by_key(|e| (e.image_id, e.point2d_idx));
     }
-    Ok(Ok(b.rec))
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Merging models that share tracks.
+//
+// Two models built from disjoint image sets can still triangulate the same tracks (a track
+// seen by images of both). The similarity between their frames comes from those common points
+// (Umeyama 1991 inside RANSAC, 3 points per sample); a common point is an inlier when, moved
+// into the other model, it reprojects within `merge_max_error_px` in every image of that
+// model observing it, both ways. Unrelated image sets share no tracks and are never merged.
+
+/// A track triangulated in both models.
+#[derive(Clone)]
+struct CommonPoint {
+    in_a: Vector3<f64>,
+    in_b: Vector3<f64>,
+    /// Observations (camera id, pose, pixel) in model a and in model b.
+    views_a: Vec<(u32, CamFromWorld, Vector2<f64>)>,
+    views_b: Vec<(u32, CamFromWorld, Vector2<f64>)>,
+}
+
+struct Sim3Estimator<'a> {
+    cameras_a: &'a BTreeMap<u32, Camera>,
+    cameras_b: &'a BTreeMap<u32, Camera>,
+}
+
+fn worst_reprojection(
+    cameras: &BTreeMap<u32, Camera>,
+    views: &[(u32, CamFromWorld, Vector2<f64>)],
+    x: &Vector3<f64>,
+) -> f64 {
+    views
+        .iter()
+        .map(|(cam, pose, px)| {
+            let xc = pose.0.rotation * x + pose.0.translation;
+            if xc.z <= 0.0 {
+                return f64::INFINITY;
+            }
+            cameras[cam]
+                .image_from_cam(&xc.into())
+                .map_or(f64::INFINITY, |p| (p.coords - px).norm())
+        })
+        .fold(0.0, f64::max)
+}
+
+impl Estimator for Sim3Estimator<'_> {
+    type Datum = CommonPoint;
+    /// `a_from_b`.
+    type Model = Sim3;
+    fn min_sample_size(&self) -> usize {
+        3
+    }
+    fn fit_minimal(&self, sample: &[CommonPoint], models: &mut Vec<Sim3>) {
+        self.fit_nonminimal(sample, models);
+    }
+    fn fit_nonminimal(&self, data: &[CommonPoint], models: &mut Vec<Sim3>) {
+        let src: Vec<Point3<f64>> = data.iter().map(|d| d.in_b.into()).collect();
+        let dst: Vec<Point3<f64>> = data.iter().map(|d| d.in_a.into()).collect();
+        models.extend(Sim3::umeyama(&src, &dst, true).filter(|s| s.scale > 0.0));
+    }
+    fn squared_error(&self, a_from_b: &Sim3, d: &CommonPoint) -> f64 {
+        let in_a = a_from_b.apply(&d.in_b.into()).coords;
+        let in_b = a_from_b.inverse().apply(&d.in_a.into()).coords;
+        let e = worst_reprojection(self.cameras_a, &d.views_a, &in_a).max(worst_reprojection(
+            self.cameras_b,
+            &d.views_b,
+            &in_b,
+        ));
+        e * e
+    }
+}
+
+/// The point of each track in `rec` (track index -> point id).
+fn points_by_track(rec: &Reconstruction, tracks: &Tracks) -> HashMap<usize, u64> {
+    let mut map = HashMap::new();
+    for p in rec.points3d.values() {
+        if let Some(el) = p.track.first()
+            && let Some(t) = tracks.track_of(el.image_id, el.point2d_idx)
+        {
+            map.insert(t, p.id);
+        }
+    }
+    map
+}
+
+/// Model `b` moved into model `a`'s frame and joined to it, if they share enough consistent
+/// points (see above); `None` otherwise.
+fn merge_models(
+    a: &Reconstruction,
+    b: &Reconstruction,
+    tracks: &Tracks,
+    config: &MapperConfig,
+) -> Option<Reconstruction> {
+    let in_a = points_by_track(a, tracks);
+    let in_b = points_by_track(b, tracks);
+    let views = |rec: &Reconstruction, pid: u64| -> Vec<(u32, CamFromWorld, Vector2<f64>)> {
+        rec.points3d[&pid]
+            .track
+            .iter()
+            .map(|el| {
+                let im = &rec.images[&el.image_id];
+                (
+                    im.camera_id,
+                    im.cam_from_world,
+                    im.keypoints[el.point2d_idx as usize].coords,
+                )
+            })
+            .collect()
+    };
+    let mut common_tracks: Vec<usize> = in_b
+        .keys()
+        .filter(|t| in_a.contains_key(t))
+        .copied()
+        .collect();
+    common_tracks.sort_unstable();
+    let common: Vec<CommonPoint> = common_tracks
+        .iter()
+        .map(|t| CommonPoint {
+            in_a: a.points3d[&in_a[t]].position.coords,
+            in_b: b.points3d[&in_b[t]].position.coords,
+            views_a: views(a, in_a[t]),
+            views_b: views(b, in_b[t]),
+        })
+        .collect();
+    if common.len() < config.merge_min_points {
+        tracing::debug!(
+            "models of {} and {} images share {} points: not merged",
+            a.images.len(),
+            b.images.len(),
+            common.len()
+        );
+        return None;
+    }
+    let estimator = Sim3Estimator {
+        cameras_a: &a.cameras,
+        cameras_b: &b.cameras,
+    };
+    let rc = RansacConfig {
+        max_error: config.merge_max_error_px,
+        min_iterations: 100,
+        seed: common_tracks.len() as u64,
+        ..RansacConfig::default()
+    };
+    let report = ransac(&estimator, &common, &rc).ok()?;
+    tracing::debug!(
+        "models of {} and {} images share {} points, {} consistent with one similarity",
+        a.images.len(),
+        b.images.len(),
+        common.len(),
+        report.num_inliers
+    );
+    if report.num_inliers < config.merge_min_points
+        || (report.num_inliers as f64) < 0.5 * common.len() as f64
+    {
+        return None;
+    }
+    let a_from_b = report.model;
+    let mut merged = a.clone();
+    for (id, cam) in &b.cameras {
+        merged.cameras.entry(*id).or_insert_with(|| cam.clone());
+    }
+    for im in b.images.values() {
+        let mut im = im.clone();
+        im.cam_from_world = a_from_b.transform_cam_from_world(&im.cam_from_world);
+        im.point3d_ids.iter_mut().for_each(|p| *p = None);
+        merged.images.insert(im.id, im);
+    }
+    let inlier_tracks: HashMap<usize, bool> = common_tracks
+        .iter()
+        .zip(&report.inliers)
+        .map(|(&t, &ok)| (t, ok))
+        .collect();
+    let mut next_id = merged.points3d.keys().max().map_or(1, |m| m + 1);
+    let mut by_id: Vec<&Point3D> = b.points3d.values().collect();
+    by_id.sort_by_key(|p| p.id);
+    for (t, pid_b) in in_b
+        .iter()
+        .map(|(t, p)| (*t, *p))
+        .collect::<BTreeMap<usize, u64>>()
+    {
+        let pb = &b.points3d[&pid_b];
+        let target = match inlier_tracks.get(&t) {
+            Some(true) => in_a[&t],
+            Some(false) => continue,
+            None => {
+                let id = next_id;
+                next_id += 1;
+                merged.points3d.insert(
+                    id,
+                    Point3D {
+                        id,
+                        position: a_from_b.apply(&pb.position),
+                        color: pb.color,
+                        error: pb.error,
+                        track: Vec::new(),
+                    },
+                );
+                id
+            }
+        };
+        for el in &pb.track {
+            if let Some(im) = merged.images.get_mut(&el.image_id) {
+                im.point3d_ids[el.point2d_idx as usize] = Some(target);
+            }
+        }
+        if let Some(p) = merged.points3d.get_mut(&target) {
+            p.track.extend_from_slice(&pb.track);
+        }
+    }
+    Some(merged)
+}
+
+impl<'a> Builder<'a> {
+    /// A builder continuing from an existing model (after a merge).
+    #[allow(clippy::too_many_arguments)]
+    fn from_model(
+        input: &'a MapperInput,
+        config: &'a MapperConfig,
+        tracks: &'a Tracks,
+        image_index: &'a HashMap<u32, usize>,
+        used: &'a BTreeSet<u32>,
+        rec: Reconstruction,
+    ) -> Self {
+        let mut track_point = vec![None; tracks.tracks.len()];
+        let mut point_track = HashMap::new();
+        for (t, pid) in points_by_track(&rec, tracks) {
+            track_point[t] = Some(pid);
+            point_track.insert(pid, t);
+        }
+        let next_point_id = rec.points3d.keys().max().map_or(1, |m| m + 1);
+        Builder {
+            input,
+            config,
+            tracks,
+            image_index,
+            rec,
+            track_point,
+            point_track,
+            next_point_id,
+            used,
+            failed: BTreeSet::new(),
+        }
+    }
 }
 
 fn try_initial_pair(
@@ -944,8 +1308,8 @@ pub fn map(
         }
         match build_model(input, config, &tracks, &image_index, &used, progress)? {
             Ok(model) => {
-                used.extend(model.images.keys().copied());
-                if model.images.len() >= config.min_model_images {
+                used.extend(model.rec.images.keys().copied());
+                if model.rec.images.len() >= config.min_model_images {
                     models.push(model);
                 }
             }
@@ -955,7 +1319,38 @@ pub fn map(
             }
         }
     }
+    // Models that share tracks are merged, largest first; a merged model is adjusted and
+    // grown again (images that fitted neither part may fit the union), until nothing merges.
+    'merging: loop {
+        models.sort_by_key(|m| std::cmp::Reverse(m.rec.images.len()));
+        for i in 0..models.len() {
+            for j in i + 1..models.len() {
+                let Some(rec) = merge_models(&models[i].rec, &models[j].rec, &tracks, config)
+                else {
+                    continue;
+                };
+                models.remove(j);
+                let gauge = models[i].gauge;
+                let others: BTreeSet<u32> = models
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| *k != i)
+                    .flat_map(|(_, m)| m.rec.images.keys().copied())
+                    .collect();
+                let mut b = Builder::from_model(input, config, &tracks, &image_index, &others, rec);
+                b.global_ba(gauge)?;
+                b.filter_points(None);
+                b.retriangulate();
+                grow(&mut b, gauge, progress)?;
+                used.extend(b.rec.images.keys().copied());
+                models[i].rec = b.rec;
+                continue 'merging;
+            }
+        }
+        break;
+    }
     progress.end();
+    let mut models: Vec<Reconstruction> = models.into_iter().map(|m| m.rec).collect();
     models.sort_by_key(|m| std::cmp::Reverse(m.images.len()));
     let registered: BTreeSet<u32> = models
         .iter()
@@ -1109,6 +1504,90 @@ mod tests {
             assert!((f - 1500.0).abs() < 15.0, "factor {factor}: f {f}");
             assert!(evaluate_poses(m, &truth).unwrap().max_rotation_deg < 0.2);
         }
+    }
+
+    /// The part of `rec` seen by `images`: those images, and the points they see at least
+    /// twice, with only those observations.
+    fn sub_model(rec: &Reconstruction, images: &BTreeSet<u32>) -> Reconstruction {
+        let mut sub = rec.clone();
+        sub.images.retain(|id, _| images.contains(id));
+        for im in sub.images.values_mut() {
+            im.point3d_ids.iter_mut().for_each(|p| *p = None);
+        }
+        sub.points3d.retain(|_, p| {
+            p.track.retain(|el| images.contains(&el.image_id));
+            p.track.len() >= 2
+        });
+        for p in sub.points3d.values() {
+            for el in &p.track {
+                sub.images.get_mut(&el.image_id).unwrap().point3d_ids[el.point2d_idx as usize] =
+                    Some(p.id);
+            }
+        }
+        sub
+    }
+
+    /// Two halves of a ring, one moved by a similarity, share tracks: merged into one model
+    /// with the true poses (up to the keypoint noise), every point kept once with the union of
+    /// its observations; halves sharing too few points are not merged.
+    #[test]
+    fn models_sharing_tracks_are_merged() {
+        let (truth, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 12,
+            points: 1500,
+            noise_px: 0.5,
+            seed: 7,
+            ..Default::default()
+        });
+        let tracks = build_tracks(
+            &input_from_tracks(&truth)
+                .pairs
+                .iter()
+                .map(|p| PairMatches {
+                    image_a: p.image1,
+                    image_b: p.image2,
+                    matches: p.inliers.clone(),
+                })
+                .collect::<Vec<_>>(),
+        );
+        let a = sub_model(&truth, &(1..=6).collect());
+        let mut b = sub_model(&truth, &(7..=12).collect());
+        let b_from_truth = Sim3 {
+            scale: 2.5,
+            rotation: UnitQuaternion::from_euler_angles(0.3, -0.5, 1.1),
+            translation: Vector3::new(1.0, -2.0, 0.5),
+        };
+        for im in b.images.values_mut() {
+            im.cam_from_world = b_from_truth.transform_cam_from_world(&im.cam_from_world);
+        }
+        for p in b.points3d.values_mut() {
+            p.position = b_from_truth.apply(&p.position);
+        }
+        let common = truth
+            .points3d
+            .values()
+            .filter(|p| a.points3d.contains_key(&p.id) && b.points3d.contains_key(&p.id))
+            .count();
+        assert!(common >= 20, "{common}");
+        let merged = merge_models(&a, &b, &tracks, &config()).expect("merged");
+        merged.validate().unwrap();
+        assert_eq!(merged.images.len(), 12);
+        let e = evaluate_poses(&merged, &truth).unwrap();
+        assert!(e.max_rotation_deg < 1e-6, "{e:?}");
+        assert!(e.max_centre_frac < 1e-6, "{e:?}");
+        // Every true point seen twice by either half is in the merged model exactly once.
+        let expected = truth
+            .points3d
+            .values()
+            .filter(|p| a.points3d.contains_key(&p.id) || b.points3d.contains_key(&p.id))
+            .count();
+        assert_eq!(merged.points3d.len(), expected);
+        // Too few common points: not merged.
+        let strict = MapperConfig {
+            merge_min_points: common + 1,
+            ..config()
+        };
+        assert!(merge_models(&a, &b, &tracks, &strict).is_none());
     }
 
     /// Two unrelated image sets (no match between them) give two models, each complete.
