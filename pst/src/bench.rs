@@ -1,12 +1,31 @@
-//! Measuring lookups: query sets scattered around the samples, as the vertices of a finer
-//! mesh of the same surface would be ([`queries_near_samples`]), and the brute-force
-//! reference of section 4's formula they are checked against ([`brute_force_eval`],
-//! [`brute_force_agreement`]).
+//! Measuring lookups: query points on the surface, the vertices of a mesh in file order as
+//! `apply` meets them ([`surface_queries`]), or scattered around the samples
+//! ([`queries_near_samples`]), and the brute-force reference of section 4's formula they are
+//! checked against ([`brute_force_eval`], [`brute_force_agreement`]).
 
 use rayon::prelude::*;
 
+use crate::error::Result;
 use crate::field::{Field, FieldConfig, Kernel};
+use crate::input::PointSource;
 use crate::samples::SampleSet;
+
+/// Up to `count` points of `source` (a mesh's vertices, a cloud's points) in file order, as
+/// f32 positions: the queries `apply` evaluates, in the order it meets them.
+pub fn surface_queries(source: &dyn PointSource, count: usize) -> Result<Vec<[f32; 3]>> {
+    let mut out = Vec::with_capacity(count.min(source.len_hint().unwrap_or(0) as usize));
+    source.stream(&mut |chunk| {
+        let room = count - out.len();
+        out.extend(
+            chunk
+                .iter()
+                .take(room)
+                .map(|p| p.position.map(|v| v as f32)),
+        );
+        Ok(())
+    })?;
+    Ok(out)
+}
 
 /// `count` points near the samples: each a sample moved by up to half the typical sample
 /// spacing (estimated from the bounding box and the count), in sample order (coherent, like a

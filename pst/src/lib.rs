@@ -32,6 +32,7 @@ pub mod paint;
 pub mod ply_input;
 pub mod refine;
 pub mod region;
+mod sample_grid;
 pub mod samples;
 pub mod sampling;
 pub mod store;

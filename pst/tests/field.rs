@@ -147,3 +147,66 @@ fn dense_lookups_equal_brute_force() {
         }
     }
 }
+
+#[test]
+fn coherent_stream_lookups_equal_brute_force() {
+    // Queries in the order a mesh's vertex stream gives them: rows of a latitude-longitude
+    // grid, alternately just inside and outside the sphere, so that consecutive queries share
+    // grid cells and each query's candidate bound comes from the previous one's k-th
+    // distance. Also k larger than the sample count (every sample is a neighbour).
+    let mut rng = Rng(5);
+    let samples = sphere_samples(4000, &mut rng);
+    let (rows, cols) = (120, 240);
+    let mut queries: Vec<[f32; 3]> = Vec::with_capacity(rows * cols);
+    for r in 0..rows {
+        let theta = std::f64::consts::PI * (r as f64 + 0.5) / rows as f64;
+        for c in 0..cols {
+            let phi = std::f64::consts::TAU * c as f64 / cols as f64;
+            let radius = if (r + c) % 2 == 0 { 0.997 } else { 1.003 };
+            queries.push([
+                (radius * theta.sin() * phi.cos()) as f32,
+                (radius * theta.sin() * phi.sin()) as f32,
+                (radius * theta.cos()) as f32,
+            ]);
+        }
+    }
+    for k in [1, 8, 24] {
+        let cfg = FieldConfig {
+            k,
+            kernel: Kernel::Hermite,
+        };
+        let field = Field::new(&samples, cfg);
+        let mut batch = vec![0f32; queries.len() * 4];
+        field.eval_many(&queries, &mut batch);
+        for (i, q) in queries.iter().enumerate().step_by(7) {
+            let expected = fresco_pst::bench::brute_force_eval(&samples, q, &cfg);
+            for c in 0..4 {
+                // f32 against f64 near the surface, relative 1e-4 (as above).
+                let tol = 1e-4 * (1.0 + expected[c].abs());
+                assert!(
+                    (batch[i * 4 + c] as f64 - expected[c]).abs() < tol,
+                    "k = {k}, query {i} channel {c}: batch {} vs brute force {}",
+                    batch[i * 4 + c],
+                    expected[c]
+                );
+            }
+        }
+    }
+    // Fewer samples than k: the average over all of them, weighted by h.
+    let few = sphere_samples(10, &mut rng);
+    let cfg = FieldConfig {
+        k: 20,
+        kernel: Kernel::Hermite,
+    };
+    let field = Field::new(&few, cfg);
+    let mut batch = vec![0f32; 200 * 4];
+    field.eval_many(&queries[..200], &mut batch);
+    for (i, q) in queries[..200].iter().enumerate() {
+        let expected = fresco_pst::bench::brute_force_eval(&few, q, &cfg);
+        for c in 0..4 {
+            assert!(
+                (batch[i * 4 + c] as f64 - expected[c]).abs() < 1e-4 * (1.0 + expected[c].abs())
+            );
+        }
+    }
+}
