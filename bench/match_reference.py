@@ -11,6 +11,13 @@
                  ratio 0.8 plus the mutual check (what `fresco match` does), then
                  findEssentialMat (RANSAC, 0.999, 4 px: fresco's default threshold) and
                  recoverPose. Prints one JSON line: wall and CPU seconds, pairs, verified pairs, inliers.
+  pair <dir> <image1> <image2> [nfeatures]
+                 OpenCV SIFT of two photos (nfeatures 0 = all) written as fresco feature files
+                 <dir>/a.sift and <dir>/b.sift, for the throughput comparison.
+  throughput <dir> [runs]
+                 OpenCV BFMatcher (NORM_L2, default threads) knnMatch k=2 of a.sift against
+                 b.sift (the same u8 descriptors as f32), median of runs (default 5); also the
+                 reverse match() a mutual check needs. One JSON line with descriptor pairs/s.
 """
 import json
 import struct
@@ -121,5 +128,61 @@ def opencv(ws):
                       "verified": verified, "inliers": inliers}))
 
 
+def write_sift(path, kps, desc, w, h):
+    desc_u8 = np.clip(np.round(desc), 0, 255).astype(np.uint8)
+    header = b"FRSIFT\0\0" + struct.pack("<6I", 1, len(kps), 128, 0, w, h)
+    kp = np.array(
+        [(k.pt[0] + 0.5, k.pt[1] + 0.5, k.size / 2.0, np.radians(k.angle)) for k in kps],
+        dtype="<f4",
+    )
+    Path(path).write_bytes(header + kp.tobytes() + desc_u8.tobytes())
+
+
+def read_sift_descriptors(path):
+    data = Path(path).read_bytes()
+    n = struct.unpack("<6I", data[8:32])[1]
+    off = 32 + 16 * n
+    return np.frombuffer(data[off:off + 128 * n], dtype=np.uint8).reshape(n, 128)
+
+
+def pair(out, image1, image2, nfeatures="0"):
+    out.mkdir(parents=True, exist_ok=True)
+    sift = cv2.SIFT_create(nfeatures=int(nfeatures))
+    for name, image in (("a", image1), ("b", image2)):
+        grey = cv2.imread(image, cv2.IMREAD_GRAYSCALE)
+        kps, desc = sift.detectAndCompute(grey, None)
+        write_sift(out / f"{name}.sift", kps, desc, grey.shape[1], grey.shape[0])
+    print(json.dumps({"a": image1, "b": image2}))
+
+
+def throughput(out, runs="5"):
+    a = read_sift_descriptors(out / "a.sift").astype(np.float32)
+    b = read_sift_descriptors(out / "b.sift").astype(np.float32)
+    matcher = cv2.BFMatcher(cv2.NORM_L2)
+    knn, both = [], []
+    for _ in range(int(runs)):
+        t0 = time.perf_counter()
+        fwd = matcher.knnMatch(a, b, k=2)
+        t1 = time.perf_counter()
+        back = matcher.match(b, a)
+        t2 = time.perf_counter()
+        knn.append(t1 - t0)
+        both.append(t2 - t0)
+    best_back = {m.queryIdx: m.trainIdx for m in back}
+    good = sum(1 for p in fwd if len(p) == 2 and p[0].distance < 0.8 * p[1].distance
+               and best_back.get(p[0].trainIdx) == p[0].queryIdx)
+    knn_s, both_s = float(np.median(knn)), float(np.median(both))
+    print(json.dumps({"n1": len(a), "n2": len(b), "matches": good, "runs": int(runs),
+                      "knn_seconds": knn_s, "knn_pairs_per_second": len(a) * len(b) / knn_s,
+                      "mutual_seconds": both_s, "mutual_pairs_per_second": len(a) * len(b) / both_s,
+                      "threads": cv2.getNumThreads()}))
+
+
 if __name__ == "__main__":
-    {"prepare": prepare, "opencv": opencv}[sys.argv[1]](Path(sys.argv[2]))
+    cmd = sys.argv[1]
+    if cmd in ("prepare", "opencv"):
+        {"prepare": prepare, "opencv": opencv}[cmd](Path(sys.argv[2]))
+    elif cmd == "pair":
+        pair(Path(sys.argv[2]), *sys.argv[3:])
+    elif cmd == "throughput":
+        throughput(Path(sys.argv[2]), *sys.argv[3:])

@@ -3,6 +3,9 @@
 Each photo is read (cv2.imread, colour), converted to grey (Rec. 601, as fresco) and passed to
 cv2.SIFT_create().detectAndCompute with OpenCV's default thread settings; the time covers
 reading, conversion and detection+description of every photo, as fresco's summary does.
+
+`sift_opencv.py --image <photo>`: one photo, decoding and grey conversion untimed, one untimed
+warm-up call, then one timed detectAndCompute; prints JSON {keypoints, seconds}.
 """
 import json
 import os
@@ -10,6 +13,16 @@ import sys
 import time
 
 import cv2
+
+if sys.argv[1] == "--image":
+    grey = cv2.cvtColor(cv2.imread(sys.argv[2], cv2.IMREAD_COLOR), cv2.COLOR_BGR2GRAY)
+    sift = cv2.SIFT_create()
+    sift.detectAndCompute(grey, None)
+    t0 = time.perf_counter()
+    kps, desc = sift.detectAndCompute(grey, None)
+    seconds = time.perf_counter() - t0
+    print(json.dumps({"keypoints": len(kps), "seconds": seconds, "threads": cv2.getNumThreads()}))
+    sys.exit(0)
 
 folder = sys.argv[1]
 names = sorted(n for n in os.listdir(folder) if n.lower().endswith((".png", ".jpg", ".jpeg")))

@@ -1,5 +1,6 @@
 //! SIFT phase profile: `cargo run --release -p fresco-sfm --example sift_phases -- <photo>...
-//! [--runs N]`. For each photo prints one JSON line with the median (over N runs, default 5)
+//! [--runs N]`. After one untimed warm-up run (thread pool, page faults), for each photo prints
+//! one JSON line with the median (over N runs, default 5)
 //! seconds of every phase — decode, scale space (up-sampling + blurs), DoG + extrema,
 //! orientation, descriptor — and of the whole `extract_features` call (decode excluded), so
 //! the per-image figures of bench/sift.sh can be compared phase by phase.
@@ -38,7 +39,12 @@ fn main() {
     for path in &photos {
         let mut t = vec![Vec::new(); 6];
         let mut count = 0;
-        for _ in 0..runs {
+        for run in 0..=runs {
+            if run == 0 {
+                let photo = load_photo(std::path::Path::new(path)).expect("readable photo");
+                extract_features(&photo.grey, &config);
+                continue;
+            }
             let t0 = Instant::now();
             let photo = load_photo(std::path::Path::new(path)).expect("readable photo");
             t[0].push(t0.elapsed().as_secs_f64());
