@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! unwrap_file <in.ply|obj> <out.obj> [atlas] [gutter] [--reeb|--components] [--max-stretch X]
+//!             [--min-hull-fill X] [--iterations N]
 //! unwrap_file --measure <uvs.obj>
 //! ```
 
@@ -51,6 +52,10 @@ fn main() {
             "--max-stretch" => {
                 k += 1;
                 cfg.max_stretch = args[k].parse().expect("--max-stretch X");
+            }
+            "--min-hull-fill" => {
+                k += 1;
+                cfg.min_hull_fill = args[k].parse().expect("--min-hull-fill X");
             }
             "--iterations" => {
                 k += 1;

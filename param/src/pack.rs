@@ -5,13 +5,16 @@
 //!    bounding box has the least area (rotating calipers over the convex hull: the optimal
 //!    box has a side on a hull edge, Freeman & Shapira 1975). Its v axis is flipped so that
 //!    the texture is not mirrored in fresco's v-down convention.
-//! 2. Charts are rasterised conservatively (every texel a triangle touches) and placed,
-//!    largest first, at the first free position (lowest row, then lowest column) of a bitmap
-//!    of the atlas, trying both 0 and 90 degrees. The test uses the chart's rows dilated by
-//!    `gutter` texels (each row as one span) against the exact texels of the charts already
-//!    placed, so charts are at least `gutter` texels apart and small charts can still nest in
-//!    the concavities of large ones. A conflict in a row skips the position past the occupied
-//!    texel that caused it, so the search runs over obstacles rather than over every texel.
+//! 2. Charts are rasterised conservatively (every texel a triangle touches), in the four
+//!    quarter-turn orientations, and placed, largest first, where the chart's bottom edge is
+//!    lowest (then leftmost) over its orientations, each orientation at its first free
+//!    position (lowest row, then lowest column) of a bitmap of the atlas. The test uses the
+//!    chart's texels dilated by `gutter` (square neighbourhood, as runs per row) against the
+//!    exact texels of the charts already placed, so charts are at least `gutter` texels apart
+//!    and charts can nest in each other's concavities (a bent band inside another). A
+//!    conflict in a row skips the position past the occupied texel that caused it, and rows
+//!    whose longest free run is too short are skipped, so the search runs over obstacles
+//!    rather than over every texel.
 //! 3. Without a given density, the density that fills one atlas is found by packing into a
 //!    strip of the atlas' width and rescaling by the square root of width / used height
 //!    (a few rounds; the gutter does not scale, hence the iteration).
@@ -132,6 +135,25 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
             }
         }
     }
+    // Bisection between the densest fit and the lightest failure: the rescaling above
+    // overshoots or stops short by a few percent, which is a few percent of utilisation.
+    if let Some(b) = &best {
+        let mut lo = b.0;
+        for _ in 0..4 {
+            if !lowest_failure.is_finite() || lowest_failure <= lo * 1.005 {
+                break;
+            }
+            let mid = (lo * lowest_failure).sqrt();
+            let rasters = rasterise_all(charts, &base, mid, cfg.gutter);
+            match place(&rasters, w, 16 * w, true) {
+                Ok((placements, _, used)) if used <= w => {
+                    lo = mid;
+                    best = Some((mid, rasters, placements));
+                }
+                _ => lowest_failure = mid,
+            }
+        }
+    }
     let (tpu, rasters, placements) = match best {
         Some(b) => b,
         None => {
@@ -155,7 +177,7 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
 }
 
 fn finish(
-    placements: Vec<(u32, u32, u32, bool)>,
+    placements: Vec<Spot>,
     atlases: u32,
     tpu: f64,
     base: &[Matrix2<f64>],
@@ -164,24 +186,24 @@ fn finish(
     let placements = placements
         .into_iter()
         .enumerate()
-        .map(|(i, (atlas, x, y, turned))| {
+        .map(|(i, (atlas, x, y, turn))| {
             let r = &rasters[i];
             let m = base[i] * tpu;
-            // Texel position inside the chart's own (undilated) frame: m·uv − origin.
-            let g = r.gutter as f64;
-            let (linear, offset) = if turned {
-                // 90 degrees: (x, y) -> (h − y, x) in the chart frame (orientation kept).
-                let rot = Matrix2::new(0.0, -1.0, 1.0, 0.0);
-                let lin = rot * m;
-                let off = rot * (-r.origin) + Vector2::new(r.height as f64, 0.0);
-                (lin, off + Vector2::new(x as f64 + g, y as f64 + g))
-            } else {
-                (m, -r.origin + Vector2::new(x as f64 + g, y as f64 + g))
+            // Texel position inside the chart's own (undilated) frame: m·uv − origin, in
+            // [0, W] x [0, H]; then turned by `turn` quarter turns (orientation kept):
+            // 1: (x, y) -> (H − y, x); 2: (W − x, H − y); 3: (y, W − x).
+            let (w, h) = (r.width as f64, r.height as f64);
+            let (rot, shift) = match turn {
+                1 => (Matrix2::new(0.0, -1.0, 1.0, 0.0), Vector2::new(h, 0.0)),
+                2 => (Matrix2::new(-1.0, 0.0, 0.0, -1.0), Vector2::new(w, h)),
+                3 => (Matrix2::new(0.0, 1.0, -1.0, 0.0), Vector2::new(0.0, w)),
+                _ => (Matrix2::identity(), Vector2::zeros()),
             };
+            let g = r.gutter as f64;
             Placement {
                 atlas,
-                linear,
-                offset,
+                linear: rot * m,
+                offset: rot * (-r.origin) + shift + Vector2::new(x as f64 + g, y as f64 + g),
             }
         })
         .collect();
@@ -253,22 +275,84 @@ pub(crate) fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
     hull
 }
 
-/// Where a chart went: (atlas, x, y, turned by 90 degrees).
-type Spot = (u32, u32, u32, bool);
+/// Where a chart went: (atlas, x, y, quarter turns 0..4).
+type Spot = (u32, u32, u32, u8);
 
-/// A chart rasterised at one density.
+/// A chart rasterised at one density, in its four quarter-turn orientations.
 struct Raster {
-    /// Undilated size in texels.
+    /// Undilated size in texels (orientation 0).
     width: u32,
     height: u32,
     gutter: u32,
     /// Texel-space position of the undilated frame's origin (bbox min, floored).
     origin: Vector2<f64>,
+    /// Orientations 0, 90, 180, 270 degrees (see [`finish`] for the maps).
+    turns: [Oriented; 4],
+    area: u64,
+}
+
+/// One orientation of a rasterised chart.
+struct Oriented {
+    /// Undilated size.
+    width: u32,
+    height: u32,
     /// Undilated occupancy: for each row, runs of covered texels [lo, hi].
     runs: Vec<Vec<(u32, u32)>>,
-    /// Dilated rows (size height + 2 gutter): span [lo, hi] in the dilated frame, or None.
-    spans: Vec<Option<(u32, u32)>>,
-    area: u64,
+    /// Dilated rows (height + 2 gutter; columns in the dilated frame, width + 2 gutter): the
+    /// runs of texels within `gutter` of the chart (square neighbourhood), merged.
+    spans: Vec<Vec<(u32, u32)>>,
+    /// Longest span of each dilated row.
+    longest: Vec<u32>,
+}
+
+impl Oriented {
+    /// From a row-major occupancy grid.
+    fn new(width: u32, height: u32, covered: &dyn Fn(u32, u32) -> bool, gutter: u32) -> Self {
+        let mut runs = Vec::with_capacity(height as usize);
+        for r in 0..height {
+            let mut list = Vec::new();
+            let mut c = 0;
+            while c < width {
+                if covered(c, r) {
+                    let start = c;
+                    while c < width && covered(c, r) {
+                        c += 1;
+                    }
+                    list.push((start, c - 1));
+                } else {
+                    c += 1;
+                }
+            }
+            runs.push(list);
+        }
+        let g = gutter as i64;
+        let dh = height as i64 + 2 * g;
+        let mut spans = Vec::with_capacity(dh as usize);
+        let mut longest = Vec::with_capacity(dh as usize);
+        for t in 0..dh {
+            let mut all: Vec<(u32, u32)> = Vec::new();
+            for src in (t - 2 * g).max(0)..=t.min(height as i64 - 1) {
+                all.extend(runs[src as usize].iter().map(|&(a, b)| (a, b + 2 * gutter)));
+            }
+            all.sort_unstable();
+            let mut merged: Vec<(u32, u32)> = Vec::with_capacity(all.len());
+            for (a, b) in all {
+                match merged.last_mut() {
+                    Some(last) if a <= last.1 + 1 => last.1 = last.1.max(b),
+                    _ => merged.push((a, b)),
+                }
+            }
+            longest.push(merged.iter().map(|(a, b)| b - a + 1).max().unwrap_or(0));
+            spans.push(merged);
+        }
+        Oriented {
+            width,
+            height,
+            runs,
+            spans,
+            longest,
+        }
+    }
 }
 
 fn rasterise_all(
@@ -333,52 +417,25 @@ fn rasterise(chart: &ChartShape, m: &Matrix2<f64>, gutter: u32) -> Raster {
             }
         }
     }
-    let mut runs = Vec::with_capacity(height as usize);
-    let mut area = 0u64;
-    let mut row_span: Vec<Option<(u32, u32)>> = Vec::with_capacity(height as usize);
-    for row in &row_bits {
-        let mut list = Vec::new();
-        let mut c = 0u32;
-        while c < width {
-            if row[(c / 64) as usize] >> (c % 64) & 1 == 1 {
-                let start = c;
-                while c < width && row[(c / 64) as usize] >> (c % 64) & 1 == 1 {
-                    c += 1;
-                }
-                list.push((start, c - 1));
-                area += (c - start) as u64;
-            } else {
-                c += 1;
-            }
-        }
-        row_span.push(match (list.first(), list.last()) {
-            (Some(a), Some(b)) => Some((a.0, b.1)),
-            _ => None,
-        });
-        runs.push(list);
-    }
-    // Dilation by `gutter` (square neighbourhood), each dilated row as one span.
-    let g = gutter as i64;
-    let dh = height as i64 + 2 * g;
-    let spans = (0..dh)
-        .map(|r| {
-            let (mut a, mut b) = (u32::MAX, 0u32);
-            for src in (r - 2 * g).max(0)..=r.min(height as i64 - 1) {
-                if let Some((lo, hi)) = row_span[src as usize] {
-                    a = a.min(lo);
-                    b = b.max(hi + 2 * gutter);
-                }
-            }
-            (a != u32::MAX).then_some((a, b))
-        })
-        .collect();
+    let (w, h) = (width, height);
+    let bit = |c: u32, r: u32| row_bits[r as usize][(c / 64) as usize] >> (c % 64) & 1 == 1;
+    let area = row_bits
+        .iter()
+        .map(|row| row.iter().map(|x| x.count_ones() as u64).sum::<u64>())
+        .sum();
+    // Texel (c, r) of orientation k comes from the unturned texel given by the inverse map.
+    let turns = [
+        Oriented::new(w, h, &|c, r| bit(c, r), gutter),
+        Oriented::new(h, w, &|c, r| bit(r, h - 1 - c), gutter),
+        Oriented::new(w, h, &|c, r| bit(w - 1 - c, h - 1 - r), gutter),
+        Oriented::new(h, w, &|c, r| bit(w - 1 - r, c), gutter),
+    ];
     Raster {
         width,
         height,
         gutter,
         origin,
-        runs,
-        spans,
+        turns,
         area,
     }
 }
@@ -465,29 +522,27 @@ impl Bitmap {
         }
     }
 
-    /// First position (lowest row, then column) where the dilated spans fit.
-    fn find(&self, spans: &[Option<(u32, u32)>], dw: u32) -> Option<(u32, u32)> {
-        let dh = spans.len() as u32;
+    /// First position (lowest row, then column) where the dilated chart `o` fits, with its
+    /// row at most `max_y`.
+    fn find(&self, o: &Oriented, gutter: u32, max_y: u32) -> Option<(u32, u32)> {
+        let dh = o.spans.len() as u32;
+        let dw = o.width + 2 * gutter;
         if dw > self.width || dh > self.height() {
             return None;
         }
-        // The narrowest span: an atlas row with fewer free texels than that cannot be under
-        // any row of the chart, so when every row of the chart has a span, positions whose
-        // rows include it are skipped at once (full rows cost one test per chart, not dh).
-        let narrowest = spans
-            .iter()
-            .flatten()
-            .map(|(lo, hi)| hi - lo + 1)
-            .min()
-            .unwrap_or(0);
-        let solid = spans.iter().all(Option::is_some);
+        // The chart row that last conflicted is tested first at the next position: a
+        // neighbour that blocks one position usually blocks the next ones too.
+        let mut hot = 0usize;
+        // The shortest longest-span: an atlas row whose longest free run is under that cannot
+        // be under any row of the chart, so when every row of the chart is covered, positions
+        // whose rows include it are skipped at once (full rows cost one test, not dh).
+        let narrowest = o.longest.iter().copied().min().unwrap_or(0);
+        let solid = narrowest > 0;
         let mut y = 0u32;
-        'rows: while y + dh <= self.height() {
-            // Quick reject: a row with fewer free texels than the span needs.
-            for (r, s) in spans.iter().enumerate() {
-                if let Some((lo, hi)) = s
-                    && self.run[y as usize + r] < hi - lo + 1
-                {
+        'rows: while y + dh <= self.height() && y <= max_y {
+            // Quick reject: a row whose longest free run is shorter than a span of the chart's.
+            for (r, &need) in o.longest.iter().enumerate() {
+                if self.run[y as usize + r] < need {
                     y += if solid && self.run[y as usize + r] < narrowest {
                         r as u32 + 1
                     } else {
@@ -498,11 +553,14 @@ impl Bitmap {
             }
             let mut x = 0u32;
             'cols: while x + dw <= self.width {
-                for (r, s) in spans.iter().enumerate() {
-                    let Some((lo, hi)) = *s else { continue };
-                    if let Some(p) = self.last_set(y + r as u32, x + lo, x + hi) {
-                        x = p + 1 - lo;
-                        continue 'cols;
+                let rows = std::iter::once(hot).chain((0..o.spans.len()).filter(|&r| r != hot));
+                for r in rows {
+                    for &(lo, hi) in &o.spans[r] {
+                        if let Some(p) = self.last_set(y + r as u32, x + lo, x + hi) {
+                            x = p + 1 - lo;
+                            hot = r;
+                            continue 'cols;
+                        }
                     }
                 }
                 return Some((x, y));
@@ -512,79 +570,31 @@ impl Bitmap {
         None
     }
 
-    fn insert(&mut self, r: &Raster, x: u32, y: u32, turned: bool) {
-        let g = r.gutter;
-        if turned {
-            // Turned chart: texel (c, row) of the chart goes to (height − 1 − row, c).
-            for (row, list) in r.runs.iter().enumerate() {
-                let tx = x + g + r.height - 1 - row as u32;
-                for &(a, b) in list {
-                    for c in a..=b {
-                        let ty = y + g + c;
-                        self.bits[ty as usize * self.words + (tx / 64) as usize] |=
-                            1u64 << (tx % 64);
-                    }
-                }
-            }
-        } else {
-            for (row, list) in r.runs.iter().enumerate() {
-                for &(a, b) in list {
-                    self.set_run(y + g + row as u32, x + g + a, x + g + b);
-                }
+    fn insert(&mut self, o: &Oriented, gutter: u32, x: u32, y: u32) {
+        let g = gutter;
+        for (row, list) in o.runs.iter().enumerate() {
+            for &(a, b) in list {
+                self.set_run(y + g + row as u32, x + g + a, x + g + b);
             }
         }
-        let rows = if turned { r.width } else { r.height };
-        for row in y + g..y + g + rows {
+        for row in y + g..y + g + o.height {
             self.run[row as usize] = self.longest_free_run(row);
         }
-        let dh = rows + 2 * g;
-        self.used_height = self.used_height.max(y + dh);
+        self.used_height = self.used_height.max(y + o.height + 2 * g);
     }
 }
 
-/// Dilated spans of a chart turned by 90 degrees (chart column c becomes row c).
-fn turned_spans(r: &Raster) -> Vec<Option<(u32, u32)>> {
-    let g = r.gutter as i64;
-    // Column extents of the undilated chart: for each column, rows covered.
-    let mut col: Vec<Option<(u32, u32)>> = vec![None; r.width as usize];
-    for (row, list) in r.runs.iter().enumerate() {
-        // Turned x of this row.
-        let tx = r.height - 1 - row as u32;
-        for &(a, b) in list {
-            for c in a..=b {
-                let e = &mut col[c as usize];
-                *e = Some(match *e {
-                    Some((lo, hi)) => (lo.min(tx), hi.max(tx)),
-                    None => (tx, tx),
-                });
-            }
-        }
-    }
-    let dh = r.width as i64 + 2 * g;
-    (0..dh)
-        .map(|t| {
-            let (mut a, mut b) = (u32::MAX, 0u32);
-            for src in (t - 2 * g).max(0)..=t.min(r.width as i64 - 1) {
-                if let Some((lo, hi)) = col[src as usize] {
-                    a = a.min(lo);
-                    b = b.max(hi + 2 * r.gutter);
-                }
-            }
-            (a != u32::MAX).then_some((a, b))
-        })
-        .collect()
-}
-
-/// Places every raster; returns (atlas, x, y, turned) per chart in input order, the number of
-/// atlases and the used height of the first. `strip`: one atlas of height `height` whose used
-/// height is measured; otherwise new `width` x `height` atlases are opened as needed.
-#[allow(clippy::type_complexity)]
+/// Places every raster; returns (atlas, x, y, quarter turns) per chart in input order, the
+/// number of atlases and the used height of the first. `strip`: one atlas of height `height`
+/// whose used height is measured; otherwise new `width` x `height` atlases are opened as
+/// needed. Each chart goes where its bottom edge is lowest (then leftmost) over its four
+/// orientations, in the first atlas where it fits.
 fn place(
     rasters: &[Raster],
     width: u32,
     height: u32,
     strip: bool,
-) -> Result<(Vec<(u32, u32, u32, bool)>, u32, u32), ParamError> {
+) -> Result<(Vec<Spot>, u32, u32), ParamError> {
     let mut order: Vec<usize> = (0..rasters.len()).collect();
     // Largest first: by longer side, then area (deterministic ties by index).
     order.sort_by(|&a, &b| {
@@ -593,32 +603,39 @@ fn place(
         let kb = (rb.width.max(rb.height), rb.area);
         kb.cmp(&ka).then(a.cmp(&b))
     });
+    let best_in = |atlas: &Bitmap, r: &Raster| -> Option<((u32, u32), u8)> {
+        // (position, quarter turns, (bottom edge, x)).
+        type Candidate = ((u32, u32), u8, (u32, u32));
+        let mut best: Option<Candidate> = None;
+        for (k, o) in r.turns.iter().enumerate() {
+            // Only rows whose bottom edge is not below the best so far.
+            let dh = o.spans.len() as u32;
+            let max_y = match &best {
+                Some(b) if b.2.0 < dh => continue,
+                Some(b) => b.2.0 - dh,
+                None => u32::MAX,
+            };
+            if let Some((x, y)) = atlas.find(o, r.gutter, max_y) {
+                let key = (y + o.spans.len() as u32, x);
+                if best.as_ref().is_none_or(|b| key < b.2) {
+                    best = Some(((x, y), k as u8, key));
+                }
+            }
+        }
+        best.map(|(p, k, _)| (p, k))
+    };
     let mut atlases: Vec<Bitmap> = vec![Bitmap::new(width, height)];
-    let mut out = vec![(0, 0, 0, false); rasters.len()];
+    let mut out = vec![(0, 0, 0, 0u8); rasters.len()];
     for &i in &order {
         let r = &rasters[i];
-        let g = 2 * r.gutter;
-        let straight = (&r.spans, r.width + g);
-        let turned = (turned_spans(r), r.height + g);
+        let too_large = || ParamError::ChartTooLarge {
+            width: r.width + 2 * r.gutter,
+            height: r.height + 2 * r.gutter,
+            atlas: width,
+        };
         let mut placed = None;
         for (k, atlas) in atlases.iter().enumerate() {
-            let a = atlas.find(straight.0, straight.1);
-            let b = if r.width != r.height || r.runs.len() > 1 {
-                atlas.find(&turned.0, turned.1)
-            } else {
-                None
-            };
-            let pick = match (a, b) {
-                (Some(p), Some(q)) => Some(if (q.1, q.0) < (p.1, p.0) {
-                    (q, true)
-                } else {
-                    (p, false)
-                }),
-                (Some(p), None) => Some((p, false)),
-                (None, Some(q)) => Some((q, true)),
-                (None, None) => None,
-            };
-            if let Some(p) = pick {
+            if let Some(p) = best_in(atlas, r) {
                 placed = Some((k, p));
                 break;
             }
@@ -627,29 +644,13 @@ fn place(
             Some(p) => p,
             None if !strip => {
                 let fresh = Bitmap::new(width, height);
-                let found = fresh
-                    .find(straight.0, straight.1)
-                    .map(|p| (p, false))
-                    .or_else(|| fresh.find(&turned.0, turned.1).map(|p| (p, true)));
-                let Some(p) = found else {
-                    return Err(ParamError::ChartTooLarge {
-                        width: r.width + g,
-                        height: r.height + g,
-                        atlas: width,
-                    });
-                };
+                let p = best_in(&fresh, r).ok_or_else(too_large)?;
                 atlases.push(fresh);
                 (atlases.len() - 1, p)
             }
-            None => {
-                return Err(ParamError::ChartTooLarge {
-                    width: r.width + g,
-                    height: r.height + g,
-                    atlas: width,
-                });
-            }
+            None => return Err(too_large()),
         };
-        atlases[k].insert(r, x, y, t);
+        atlases[k].insert(&r.turns[t as usize], r.gutter, x, y);
         out[i] = (k as u32, x, y, t);
     }
     let used = atlases[0].used_height;

@@ -2,7 +2,11 @@
 //! stretched: a two-means clustering of the face normals when the chart is curved (the two
 //! halves are then flatter, so less stretched), otherwise a cut across the principal direction
 //! of the face centroids at the area median; a few majority-vote passes over face neighbours
-//! keep the two sides from fraying into many slivers.
+//! keep the two sides from fraying into many slivers, and then each side is made one
+//! edge-connected piece (on noisy surfaces, such as Poisson meshes of real points, normal
+//! clusters are speckled: every speckle would otherwise become a chart of its own). A normal
+//! two-means split that leaves one side under a tenth of the area is replaced by the length
+//! cut, so every split makes real progress.
 
 use fresco_core::nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
@@ -32,21 +36,49 @@ pub fn split_in_two(chart: &ChartMesh) -> (Vec<u32>, Vec<u32>) {
         .collect();
     let sum: Vector3<f64> = cross.iter().sum();
     let mean = sum.try_normalize(1e-300);
+    // Spread: the cosine to the mean normal below which 2% of the area lies (not the
+    // minimum, which one noisy face decides).
     let spread_cos = match mean {
-        Some(m) => normal
-            .iter()
-            .zip(&area)
-            .filter(|(_, a)| **a > 0.0)
-            .map(|(n, _)| n.dot(&m))
-            .fold(1.0, f64::min),
+        Some(m) => {
+            let mut c: Vec<(f64, f64)> = normal
+                .iter()
+                .zip(&area)
+                .filter(|(_, a)| **a > 0.0)
+                .map(|(n, a)| (n.dot(&m), *a))
+                .collect();
+            c.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let total: f64 = c.iter().map(|x| x.1).sum();
+            let mut acc = 0.0;
+            c.iter()
+                .find(|x| {
+                    acc += x.1;
+                    acc >= 0.02 * total
+                })
+                .map_or(1.0, |x| x.0)
+        }
         None => -1.0,
+    };
+    let topo = fresco_core::Topology::from_faces(&chart.faces, chart.vertex_count()).ok();
+    let finish = |mut side: Vec<bool>| {
+        if let Some(t) = &topo {
+            smooth(t, &mut side);
+            connect(t, &mut side);
+        }
+        side
     };
     let mut side = None;
     if spread_cos < CURVED_COS {
-        side = by_normal_gap(&normal, &area).or_else(|| by_normals(&normal, &area, mean));
+        // A crease is kept however small the part it cuts off (a cap off a tube); two-means
+        // on speckled normals only if both sides keep a tenth of the area once connected.
+        side = by_normal_gap(&normal, &area).map(finish).or_else(|| {
+            by_normals(&normal, &area, mean).map(finish).filter(|side| {
+                let total: f64 = area.iter().sum();
+                let a: f64 = (0..nf).filter(|&f| side[f]).map(|f| area[f]).sum();
+                a.min(total - a) >= 0.1 * total
+            })
+        });
     }
-    let mut side = side.unwrap_or_else(|| by_length(chart, &area));
-    smooth(chart, &mut side);
+    let side = side.unwrap_or_else(|| finish(by_length(chart, &area)));
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for (&s, &g) in side.iter().zip(&chart.global_face) {
         if s {
@@ -189,11 +221,8 @@ fn by_length(chart: &ChartMesh, area: &[f64]) -> Vec<bool> {
 
 /// Majority vote over edge neighbours (3 passes): a face whose neighbours mostly sit on the
 /// other side joins them. Keeps the two sides compact; never empties a side.
-fn smooth(chart: &ChartMesh, side: &mut [bool]) {
-    let Ok(topo) = fresco_core::Topology::from_faces(&chart.faces, chart.vertex_count()) else {
-        return;
-    };
-    let nf = chart.faces.len();
+fn smooth(topo: &fresco_core::Topology, side: &mut [bool]) {
+    let nf = side.len();
     for _ in 0..3 {
         let before = side.to_vec();
         let mut changed = false;
@@ -223,6 +252,57 @@ fn smooth(chart: &ChartMesh, side: &mut [bool]) {
     }
 }
 
+/// Makes each side one edge-connected piece (when the chart is connected): every piece of
+/// the first side but its largest joins the second side, then every piece of the second side
+/// but its largest joins the first. After the first step the first side is one piece, and
+/// each leftover piece of the second side borders only it, so both end connected.
+fn connect(topo: &fresco_core::Topology, side: &mut [bool]) {
+    for which in [true, false] {
+        let pieces = pieces_of(topo, side, which);
+        let Some(largest) = (0..pieces.len()).max_by_key(|&k| (pieces[k].len(), usize::MAX - k))
+        else {
+            continue;
+        };
+        for (k, piece) in pieces.iter().enumerate() {
+            if k != largest {
+                for &f in piece {
+                    side[f as usize] = !which;
+                }
+            }
+        }
+    }
+}
+
+/// Edge-connected pieces of the faces with `side[f] == which`.
+fn pieces_of(topo: &fresco_core::Topology, side: &[bool], which: bool) -> Vec<Vec<u32>> {
+    let nf = side.len();
+    let mut seen = vec![false; nf];
+    let mut pieces = Vec::new();
+    for start in 0..nf {
+        if side[start] != which || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut piece = vec![start as u32];
+        let mut k = 0;
+        while k < piece.len() {
+            let f = piece[k] as usize;
+            k += 1;
+            for c in 0..3 {
+                if let Some(h) = topo.opposite((3 * f + c) as u32) {
+                    let g = (h / 3) as usize;
+                    if side[g] == which && !seen[g] {
+                        seen[g] = true;
+                        piece.push(g as u32);
+                    }
+                }
+            }
+        }
+        pieces.push(piece);
+    }
+    pieces
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -240,6 +320,49 @@ mod tests {
         for part in [a, b] {
             let c = ChartMesh::extract(&m, &part);
             assert!(c.disc_boundary().is_ok(), "{:?}", c.disc_boundary());
+        }
+    }
+
+    /// A noisy, nearly flat patch (normals speckled by the noise, as on a Poisson mesh of
+    /// real points): each half is one edge-connected piece holding at least a tenth of it.
+    #[test]
+    fn a_noisy_patch_splits_into_two_connected_halves() {
+        let n = 40u32;
+        let mut positions = Vec::new();
+        // Deterministic pseudo-random heights of +-0.3 of the grid step: normals spread by
+        // up to ~40 degrees, face by face.
+        let mut state = 12345u64;
+        for j in 0..=n {
+            for i in 0..=n {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let z = ((state >> 33) as f64 / (1u64 << 31) as f64 - 0.5) * 0.6;
+                positions.push(fresco_core::nalgebra::Point3::new(i as f64, j as f64, z));
+            }
+        }
+        let id = |i: u32, j: u32| j * (n + 1) + i;
+        let mut faces = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        let m = fresco_core::Mesh::from_triangles(positions, faces);
+        let all: Vec<u32> = (0..m.faces.len() as u32).collect();
+        let c = ChartMesh::extract(&m, &all);
+        let (a, b) = split_in_two(&c);
+        assert_eq!(a.len() + b.len(), m.faces.len());
+        for part in [&a, &b] {
+            let pc = ChartMesh::extract(&m, part);
+            assert_eq!(pc.edge_components().len(), 1);
+            assert!(
+                part.len() * 10 >= m.faces.len(),
+                "{} of {}",
+                part.len(),
+                m.faces.len()
+            );
         }
     }
 }

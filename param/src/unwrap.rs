@@ -43,8 +43,11 @@ pub struct UnwrapConfig {
     /// earlier default, left a sphere in two hemispheres at 1.03 once their boundaries move
     /// freely; xatlas reaches 1.006 on it.)
     pub max_stretch: f64,
-    /// Charts covering less than this fraction of their UV convex hull (C shapes, spirals,
-    /// which pack badly) are split. Default 0.5.
+    /// Charts covering less than this fraction of their UV convex hull (C shapes, bent
+    /// bands, spirals, which pack badly) are split. Default 0.7: measured on the five bench
+    /// meshes at 0.5 / 0.6 / 0.7, utilisation rose on every one of them with it (torus 0.51 ->
+    /// 0.69, double torus 0.59 -> 0.69, Poisson temple 0.64 -> 0.68; sphere and temple
+    /// unchanged), for more charts (bench/RESULTS.md, issue 6).
     pub min_hull_fill: f64,
     /// Iterations of the stretch optimisation (0 turns it off). Default 6.
     pub stretch_iterations: u32,
@@ -66,7 +69,7 @@ impl Default for UnwrapConfig {
             texels_per_unit: None,
             max_stretch: 1.02,
             stretch_iterations: 6,
-            min_hull_fill: 0.5,
+            min_hull_fill: 0.7,
             reeb_charts: false,
             charts: crate::charts::ChartConfig::default(),
         }
@@ -342,6 +345,13 @@ fn flatten(mesh: &Mesh, faces: Vec<u32>, cfg: &UnwrapConfig, progress: &dyn Prog
                 .filter(|uv| !folds(&chart, uv, &boundary));
         }
         let mut uv = uv?;
+        // Hopeless charts are split without optimising: the optimisation removes well under
+        // 8/9 of the conformal map's excess stretch (a hemisphere: 1.074 -> 1.020), so a chart
+        // whose excess is above 8 times the allowed one would be split anyway.
+        let s0 = chart_l2_stretch(&chart.positions, &chart.faces, &uv);
+        if s0 - 1.0 > 8.0 * (cfg.max_stretch - 1.0) {
+            return None;
+        }
         if cfg.stretch_iterations > 0 {
             let before = uv.clone();
             stretch::optimise_free(&chart, &mut uv, &boundary, cfg.stretch_iterations);
@@ -436,5 +446,31 @@ fn normalise(chart: ChartMesh, mut uv: Vec<Point2<f64>>, splits: usize, fallback
         area,
         splits,
         fallback,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fresco_core::nalgebra::Point3;
+
+    /// Pieces are counted through edges, not vertices: two triangles joined at a vertex are
+    /// two pieces, joined at an edge one.
+    #[test]
+    fn fragmented_counts_edge_connected_pieces() {
+        let p = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(-1.0, 0.0, 0.0),
+            Point3::new(0.0, -1.0, 0.0),
+            Point3::new(1.0, 1.0, 0.0),
+        ];
+        // Two faces sharing only vertex 0, then two sharing edge 1-2, each as one chart.
+        let at_vertex = Mesh::from_triangles(p.clone(), vec![[0, 1, 2], [0, 3, 4]]);
+        assert!(fragmented(&at_vertex, &[0, 0]));
+        assert!(!fragmented(&at_vertex, &[0, 1]));
+        let at_edge = Mesh::from_triangles(p, vec![[0, 1, 2], [1, 5, 2]]);
+        assert!(!fragmented(&at_edge, &[0, 0]));
     }
 }
