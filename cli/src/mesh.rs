@@ -23,9 +23,14 @@ pub struct MeshArgs {
     /// Screening weight of the samples (PoissonRecon's --pointWeight).
     #[arg(long, default_value_t = 4.0)]
     pub point_weight: f64,
-    /// Trim the surface where the sampling density is below this (0 keeps everything).
-    #[arg(long, default_value_t = 7.0)]
-    pub trim: f32,
+    /// Trim the surface where the sampling density (PoissonRecon's log4 scale) is below this
+    /// absolute value (0 keeps everything). Without it, --trim-below-median applies.
+    #[arg(long)]
+    pub trim: Option<f32>,
+    /// Trim where the density is this far below the median vertex density (1: a quarter of
+    /// the typical sampling density), whatever the point count and depth.
+    #[arg(long, default_value_t = 1.0)]
+    pub trim_below_median: f32,
     /// Face budget of the output (0 keeps every face).
     #[arg(long, default_value_t = 200_000)]
     pub faces: usize,
@@ -55,10 +60,17 @@ pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::V
     let (points, normals) = read_points(&input)?;
     let mut cfg = MeshConfig {
         estimate_normals: !args.no_normal_estimation,
-        trim: (args.trim > 0.0).then(|| TrimConfig {
-            trim: args.trim,
-            ..TrimConfig::default()
-        }),
+        trim: match args.trim {
+            Some(t) if t <= 0.0 => None,
+            Some(t) => Some(TrimConfig {
+                trim: t,
+                ..TrimConfig::default()
+            }),
+            None => Some(TrimConfig {
+                below_median: Some(args.trim_below_median),
+                ..TrimConfig::default()
+            }),
+        },
         target_faces: (args.faces > 0).then_some(args.faces),
         ..MeshConfig::default()
     };

@@ -46,7 +46,11 @@ impl Default for MeshConfig {
             poisson: PoissonConfig::default(),
             estimate_normals: true,
             normals: NormalConfig::default(),
-            trim: Some(TrimConfig::default()),
+            // A quarter of the typical sampling density (see `TrimConfig::below_median`).
+            trim: Some(TrimConfig {
+                below_median: Some(1.0),
+                ..TrimConfig::default()
+            }),
             cleanup: CleanupConfig::default(),
             target_faces: Some(200_000),
         }
@@ -103,7 +107,9 @@ pub enum MeshFromPointsError {
     Trim(#[from] TrimError),
     #[error("decimation: {0}")]
     Decimate(#[from] DecimateError),
-    #[error("nothing is left after trimming at density {0}: lower --trim")]
+    #[error(
+        "nothing is left after trimming at density {0}: lower --trim (or raise --trim-below-median)"
+    )]
     TrimmedAway(f32),
 }
 
@@ -179,7 +185,7 @@ pub fn mesh_from_points(
     if let Some(trim) = &cfg.trim {
         let trimmed = trim_by_density(&mesh, &out.vertex_density, trim)?;
         if trimmed.mesh.faces.is_empty() {
-            return Err(MeshFromPointsError::TrimmedAway(trim.trim));
+            return Err(MeshFromPointsError::TrimmedAway(trimmed.report.threshold));
         }
         mesh = trimmed.mesh;
         report.trim = Some(trimmed.report);

@@ -26,8 +26,15 @@ use crate::cleanup::face_components;
 /// Trimming settings (defaults: PoissonRecon's SurfaceTrimmer `--aRatio 0.001`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrimConfig {
-    /// Density threshold (PoissonRecon's `--trim`; 7 is its usual value at depth 9-10).
+    /// Density threshold (PoissonRecon's `--trim`; 7 is its usual value at depth 9-10 on
+    /// clouds of a few hundred thousand points). Ignored when `below_median` is set.
     pub trim: f32,
+    /// Threshold relative to the sampling: the median vertex density minus this (density is
+    /// a log4 scale, so 1 cuts where the density falls to a quarter of the typical one).
+    /// An absolute `trim` only suits one point count and depth: the density is
+    /// `log4(samples per unit area / samples per node)`, which grows by 1 for every 4x more
+    /// points.
+    pub below_median: Option<f32>,
     /// Below-threshold components smaller than this fraction of the total area are kept.
     pub hole_area: f64,
     /// Kept components smaller than this fraction of the total area are removed.
@@ -38,6 +45,7 @@ impl Default for TrimConfig {
     fn default() -> Self {
         TrimConfig {
             trim: 7.0,
+            below_median: None,
             hole_area: 0.001,
             island_area: 0.001,
         }
@@ -57,6 +65,8 @@ pub struct TrimReport {
     pub islands_removed: usize,
     /// Fraction of the area removed.
     pub area_removed: f64,
+    /// The density threshold used (`trim`, or the median minus `below_median`).
+    pub threshold: f32,
 }
 
 /// Why trimming could not run.
@@ -66,6 +76,8 @@ pub enum TrimError {
     LengthMismatch { densities: usize, vertices: usize },
     #[error("trim value {0} is not finite")]
     BadTrim(f32),
+    #[error("no vertex has a finite density to take the median of")]
+    NoDensity,
 }
 
 /// The trimmed mesh with the density of each of its vertices.
@@ -76,8 +88,8 @@ pub struct Trimmed {
     pub report: TrimReport,
 }
 
-/// Trims `mesh` where `density` (one per vertex) is below `cfg.trim`; see the module
-/// documentation.
+/// Trims `mesh` where `density` (one per vertex) is below `cfg.trim` (or the median density
+/// minus `cfg.below_median`); see the module documentation.
 pub fn trim_by_density(
     mesh: &Mesh,
     density: &[f32],
@@ -89,8 +101,22 @@ pub fn trim_by_density(
             vertices: mesh.positions.len(),
         });
     }
-    if !cfg.trim.is_finite() {
-        return Err(TrimError::BadTrim(cfg.trim));
+    let t = match cfg.below_median {
+        Some(delta) => {
+            if !delta.is_finite() {
+                return Err(TrimError::BadTrim(delta));
+            }
+            let mut finite: Vec<f32> = density.iter().copied().filter(|d| d.is_finite()).collect();
+            if finite.is_empty() {
+                return Err(TrimError::NoDensity);
+            }
+            let mid = finite.len() / 2;
+            *finite.select_nth_unstable_by(mid, f32::total_cmp).1 - delta
+        }
+        None => cfg.trim,
+    };
+    if !t.is_finite() {
+        return Err(TrimError::BadTrim(t));
     }
     let mut out = Mesh {
         positions: mesh.positions.clone(),
@@ -106,9 +132,9 @@ pub fn trim_by_density(
     let mut crossing: HashMap<(u32, u32), u32> = HashMap::new();
     let mut report = TrimReport {
         faces_before: mesh.faces.len(),
+        threshold: t,
         ..TrimReport::default()
     };
-    let t = cfg.trim;
     // NaN densities count as below: nothing vouches for that vertex.
     let is_above = |d: f32| d >= t;
 

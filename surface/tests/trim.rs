@@ -63,6 +63,51 @@ fn linear_density_is_cut_exactly_at_the_threshold() {
     assert!(topo.non_manifold_edges().is_empty());
 }
 
+/// The relative threshold: on the 21 x 21 grid with density 10 - 6 x, the median vertex
+/// density is that of the middle column x = 0.5, i.e. 7; 0.7 below it is 6.3, where
+/// x = 0.6167. Shifting every density (4x more points: +1 in log4 units) must cut at the
+/// same place, which an absolute threshold would not.
+#[test]
+fn threshold_below_the_median_follows_the_sampling() {
+    let mesh = grid(20);
+    for shift in [0.0f32, 1.0, -2.5] {
+        let density: Vec<f32> = mesh
+            .positions
+            .iter()
+            .map(|p| (10.0 - 6.0 * p.x) as f32 + shift)
+            .collect();
+        let out = trim_by_density(
+            &mesh,
+            &density,
+            &TrimConfig {
+                trim: 100.0, // ignored
+                below_median: Some(0.7),
+                ..TrimConfig::default()
+            },
+        )
+        .unwrap();
+        assert!((out.report.threshold - (6.3 + shift)).abs() < 1e-5);
+        let kept = 3.7 / 6.0;
+        assert!(
+            (out.mesh.surface_area() - kept).abs() < 1e-5,
+            "shift {shift}: {}",
+            out.mesh.surface_area()
+        );
+    }
+    assert_eq!(
+        trim_by_density(
+            &mesh,
+            &vec![f32::NAN; mesh.positions.len()],
+            &TrimConfig {
+                below_median: Some(1.0),
+                ..TrimConfig::default()
+            }
+        )
+        .unwrap_err(),
+        TrimError::NoDensity
+    );
+}
+
 #[test]
 fn small_gaps_are_kept_and_small_islands_removed() {
     let mesh = grid(100);
@@ -85,6 +130,7 @@ fn small_gaps_are_kept_and_small_islands_removed() {
         .collect();
     let cfg = TrimConfig {
         trim: 7.0,
+        below_median: None,
         hole_area: 0.002,
         island_area: 0.002,
     };
