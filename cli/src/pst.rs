@@ -220,6 +220,7 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
                 "alpha": a.alpha,
                 "seconds": secs,
                 "points_per_second": s.input_points as f64 / secs,
+                "phases": s.phases,
                 "warnings": s.warnings,
             }))
         }

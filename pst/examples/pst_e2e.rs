@@ -5,9 +5,10 @@
 //! `cargo run --release -p fresco-pst --example pst_e2e -- <huge.ply> <work dir> [n] [model m]`
 //!
 //! The model is the same displaced sphere (`fresco_datasets::large_mesh`) at 1280 m^2
-//! triangles, coloured per vertex by `fresco_datasets::Albedo` and written as OBJ with vertex
-//! colours; the huge mesh is sampled to n points (default 200 000), coloured from the model,
-//! applied back (k = 8) and read again.
+//! triangles (default m = 32: 1.3M triangles), coloured per vertex by
+//! `fresco_datasets::Albedo` and written as OBJ with vertex colours; the huge mesh is sampled
+//! to n points (default 400 000), coloured from the model, applied back (k = 8) and read
+//! again. The defaults are the configuration of the issue 7 row in bench/RESULTS.md.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -29,8 +30,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let huge = PathBuf::from(&args[1]);
     let work = PathBuf::from(&args[2]);
-    let n: u64 = args.get(3).map_or(Ok(200_000), |s| s.parse())?;
-    let m: u32 = args.get(4).map_or(Ok(16), |s| s.parse())?;
+    let n: u64 = args.get(3).map_or(Ok(400_000), |s| s.parse())?;
+    let m: u32 = args.get(4).map_or(Ok(32), |s| s.parse())?;
     std::fs::create_dir_all(&work)?;
     // The albedo's pattern (checker, stripes, patches, noise) stretched 3x: features of about
     // 0.5 units on a shape 2.4 units across.

