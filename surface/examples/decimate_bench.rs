@@ -1,21 +1,36 @@
 //! Decimation timing for bench/mesh.sh: a blob of 20 * 4^8 = 1.31M faces to 100k faces,
 //! with the Hausdorff and Chamfer distances to the input. One JSON line.
 //!
-//!   decimate_bench [target-faces]
+//!   decimate_bench [target-faces] [--input-out in.ply] [--output-out out.ply]
+//!
+//! (the written input lets bench/mesh.sh run Open3D's decimation on the same mesh).
 
 use std::time::Instant;
 
+use fresco_core::ply::{PlyFormat, write_mesh};
 use fresco_datasets::shapes::blob;
 use fresco_surface::decimate::{DecimateConfig, decimate};
 use fresco_surface::metrics::{DistanceConfig, mesh_distance};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let target = std::env::args()
-        .nth(1)
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut take = |flag: &str| -> Option<String> {
+        let i = args.iter().position(|a| a == flag)?;
+        let v = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        v
+    };
+    let input_out = take("--input-out");
+    let output_out = take("--output-out");
+    let target = args
+        .first()
         .map(|s| s.parse())
         .transpose()?
         .unwrap_or(100_000);
     let mesh = blob(8, 7);
+    if let Some(path) = &input_out {
+        write_mesh(path, &mesh, PlyFormat::BinaryLittleEndian)?;
+    }
     let cpu0 = cpu_seconds();
     let t = Instant::now();
     let (out, report) = decimate(
@@ -27,6 +42,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let seconds = t.elapsed().as_secs_f64();
     let cpu = cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
+    if let Some(path) = &output_out {
+        write_mesh(path, &out, PlyFormat::BinaryLittleEndian)?;
+    }
     let d = mesh_distance(
         &out,
         &mesh,

@@ -6,7 +6,7 @@
 //! (defaults: sphere 200000 9 3). The cloud comes from `fresco_datasets::point_clouds`
 //! (area-uniform, exact face normals; `--normal-noise 0.005` is 0.5% normal noise,
 //! `--holes k` cuts k geodesic discs of radius 5% of the diagonal, no outliers). Prints one
-//! line per run with the phase timings, and can write the oriented cloud (for running Open3D
+//! JSON line per run on stdout (phase timings on stderr), and can write the oriented cloud (for running Open3D
 //! on the same input) and the mesh.
 
 use std::time::Instant;
@@ -89,10 +89,11 @@ fn main() {
         let s = &out.stats;
         let unknowns: usize = s.levels.iter().map(|l| l.solved).sum();
         let iters: Vec<usize> = s.levels.iter().map(|l| l.cg.iterations).collect();
-        println!(
-            "run {r}: {} {n} pts depth {depth}: {total:.3} s (octree {:.3}, solve {:.3}, \
+        eprintln!(
+            "run {r}: {} {n} pts depth {depth} (finest used {}): {total:.3} s (octree {:.3}, solve {:.3}, \
              extract {:.3}); {} vertices, {} faces; {unknowns} unknowns; CG iterations {iters:?}; flood {} iso {:.5}",
             shape.name(),
+            s.depth,
             s.seconds_octree,
             s.seconds_solve,
             s.seconds_extract,
@@ -100,6 +101,19 @@ fn main() {
             out.mesh.face_count(),
             s.flood_cells,
             s.iso_value,
+        );
+        // One JSON line per run on stdout, for bench/poisson.sh.
+        println!(
+            "{}",
+            serde_json::json!({
+                "tool": "fresco",
+                "shape": shape.name(),
+                "depth": depth,
+                "depth_used": s.depth,
+                "seconds": total,
+                "vertices": out.mesh.vertex_count(),
+                "faces": out.mesh.face_count(),
+            })
         );
         if r == 0
             && let Some(path) = &mesh_out

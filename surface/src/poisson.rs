@@ -12,8 +12,16 @@
 //! `int V = sum_p A_p n_p`, the integral of the normal over the surface) and `A_p` is the
 //! surface area a sample stands for (`1 / sampling density`, estimated below). Weighting by
 //! area is SPSR's `Area(P) / sum w * w(p)` with `w(p) = A_p`: samples in dense regions do not
-//! pull harder. The Laplacian's entries at depth `d` scale like `h = 2^-d` while point
-//! evaluations do not, so, as SPSR does, the level-`d` system uses `alpha_d = point_weight *
+//! pull harder. `alpha = point_weight * samples_per_node` gives `point_weight` PoissonRecon's
+//! meaning: there a sample's weight is the face area of a node at the sample's density depth
+//! (`4^-depth`, where a node holds `samples_per_node` samples, i.e. `samples_per_node * A_p`),
+//! and both the normal field and the screening carry it, so relative to this formulation
+//! its screening is `samples_per_node` times stronger for the same `--pointWeight` (the
+//! indicator's jump is `samples_per_node` too, which only rescales chi). Measured on the
+//! depth-8 sphere (200k samples): mean distance to the ground truth 5.1e-5 with
+//! `alpha = 4`, 3.9e-5 with 8 (Open3D at its default point weight 2: 4.4e-5).
+//! The Laplacian's entries at depth `d` scale like `h = 2^-d` while point
+//! evaluations do not, so, as SPSR does, the level-`d` system uses `alpha_d = alpha *
 //! 2^d`: the screening has the same strength relative to the gradient term at every level.
 //! With one alpha for all levels the coarse levels are swamped by screening (60x the
 //! Laplacian at depth 3 for depth 8), their solution flattens towards 0 and the far field
@@ -852,7 +860,7 @@ pub fn reconstruct(
     let mut level_stats = Vec::with_capacity(depth as usize + 1);
     for d in 0..=depth {
         let level = &levels[d as usize];
-        let alpha = cfg.point_weight * (1u64 << d) as f64;
+        let alpha = cfg.point_weight * cfg.samples_per_node * (1u64 << d) as f64;
         // z = P y_{d-1} and W_d = P W_{d-1} + V_d on all of the level's nodes.
         let mut z = vec![0.0; level.len()];
         let mut wd = vec![[0.0f64; 3]; level.len()];
