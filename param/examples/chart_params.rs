@@ -1,6 +1,11 @@
-//! Chart counts for the paper's parameters (paper 003 figures 5 and 7: isovalue 1, 2, 5;
-//! Gaussian steps 10, 30, 50) on a protrusion-rich shape, and the time of the average
-//! geodesic distance and of the whole segmentation on a 200k-face mesh.
+//! Chart counts and stretch for the paper's parameters (paper 003 figures 5 and 7: isovalue
+//! 1, 2, 5; Gaussian steps 10, 30, 50) on a protrusion-rich shape, and the time of the
+//! average geodesic distance and of the whole segmentation on a 200k-face mesh.
+//!
+//! Stretch per setting: the segmented charts flattened as they are (LSCM + the stretch
+//! optimisation, no splitting for stretch or shape: `unwrap_charts` with `max_stretch` and
+//! `min_hull_fill` out of the way), then the same charts through the default unwrap, which
+//! splits until every chart is under `max_stretch`.
 //!
 //! `cargo run --release -p fresco-param --example chart_params`
 
@@ -12,6 +17,7 @@ use fresco_datasets::shapes;
 use fresco_param::agd::average_geodesic_distance;
 use fresco_param::charts::{ChartConfig, segment};
 use fresco_param::geodesic::{Method, SurfaceGraph};
+use fresco_param::{UnwrapConfig, measure, unwrap_charts};
 
 /// A sphere with `fingers` protrusions of different lengths along golden-spiral directions
 /// (a stand-in for the paper's bird: a body with a head, tail and legs).
@@ -45,14 +51,33 @@ fn cpu_seconds() -> Option<f64> {
     Some(ticks / 100.0) // USER_HZ is 100 on Linux
 }
 
+/// Unwraps `mesh` from `face_chart`; `as_is` keeps the charts (no splitting for stretch or
+/// shape). Returns the chart count and the L2 stretch.
+fn stretch_of(mesh: &Mesh, face_chart: &[u32], as_is: bool) -> (usize, f64) {
+    let mut m = mesh.clone();
+    let mut cfg = UnwrapConfig {
+        atlas_size: 1024,
+        gutter: 2,
+        ..UnwrapConfig::default()
+    };
+    if as_is {
+        cfg.max_stretch = f64::MAX;
+        cfg.min_hull_fill = 0.0;
+    }
+    let r = unwrap_charts(&mut m, face_chart, &cfg, &NoProgress).expect("unwrap");
+    (r.charts, measure(&m).expect("measure").l2_stretch)
+}
+
 fn main() {
     let mesh = fingered_sphere(5, 6);
     println!(
         "mesh: sphere with 6 protrusions, {} faces\n",
         mesh.faces.len()
     );
-    println!("| isovalue | Gaussian steps N | k | charts | time (s) |");
-    println!("|---|---|---|---|---|");
+    println!(
+        "| isovalue | Gaussian steps N | k | charts | segment s | L2 stretch of these charts | charts after default unwrap | L2 stretch after |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
     let runs = [(1.0, 30), (2.0, 30), (5.0, 30), (2.0, 10), (2.0, 50)];
     for (iso, n) in runs {
         let cfg = ChartConfig {
@@ -62,11 +87,12 @@ fn main() {
         };
         let t = Instant::now();
         let c = segment(&mesh, &cfg, &NoProgress).expect("segment");
+        let seconds = t.elapsed().as_secs_f64();
+        let (raw_charts, raw) = stretch_of(&mesh, &c.face_chart, true);
+        let (final_charts, fin) = stretch_of(&mesh, &c.face_chart, false);
         println!(
-            "| {iso} | {n} | {} | {} | {:.2} |",
-            cfg.bands,
-            c.count,
-            t.elapsed().as_secs_f64()
+            "| {iso} | {n} | {} | {} | {seconds:.2} | {raw:.4} ({raw_charts} charts) | {final_charts} | {fin:.4} |",
+            cfg.bands, c.count,
         );
     }
     let no_features = ChartConfig {

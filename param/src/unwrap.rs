@@ -52,10 +52,9 @@ pub struct UnwrapConfig {
     /// Iterations of the stretch optimisation (0 turns it off). Default 6.
     pub stretch_iterations: u32,
     /// Start from the Reeb-graph charts; `false` (default) starts from connected components and
-    /// lets the splitting make the charts. Off by default because on coarse meshes the
-    /// Reeb charts come out in pieces joined only at vertices (the temple's columns split into
-    /// single triangles: 273 charts, against 28 from components) and segmenting costs more
-    /// than unwrapping; see `bench/param.sh` for both.
+    /// lets the splitting make the charts. Measured on the six bench meshes (bench/RESULTS.md,
+    /// issue 6): the Reeb charts give shorter seams on five, but higher stretch and lower
+    /// utilisation on five (torus: 0.54 against 0.69), and segmenting costs time.
     pub reeb_charts: bool,
     /// Settings of the Reeb-graph segmentation.
     pub charts: crate::charts::ChartConfig,
