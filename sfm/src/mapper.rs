@@ -20,14 +20,16 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 use fresco_core::{
     CamFromWorld, Camera, Image, Point3D, Progress, Reconstruction, Rigid3, Sim3, TrackElement,
 };
-use nalgebra::{Matrix3, Point2, Point3, SMatrix, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Point2, Point3, Vector2, Vector3};
 use serde::Serialize;
 
 use crate::bundle::{BundleConfig, BundleError, BundleSetup, Gauge, bundle_adjust};
+use crate::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
 use crate::pnp::{PnpConfig, estimate_pose};
 use crate::ransac::{Estimator, RansacConfig, ransac};
 use crate::tracks::{PairMatches, Tracks, build_tracks};
 use crate::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
+use crate::two_view::Correspondence;
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
 #[derive(Clone, Debug)]
@@ -214,152 +216,51 @@ pub enum MapperError {
 }
 
 // ---------------------------------------------------------------------------------------
-// Relative pose of the initial pair when the two-view geometry did not provide one.
-//
-// Stand-in for the crate's essential-matrix estimation (`essential.rs`, branch sfm-features):
-// the normalised 8-point algorithm (Hartley 1997) inside the crate's RANSAC, decomposed into
-// the four (R, t) and chosen by cheirality. Used only when `MapperPair::cam2_from_cam1` is None.
+// Relative pose of two images under the current intrinsics: the five-point essential matrix
+// in the crate's RANSAC (`essential.rs`), decomposed by cheirality and refined on the Sampson
+// distances of its inliers. Used for the initial pair when the two-view geometry gave no pose,
+// and for registration through a pair (`Builder::register_through_pair`).
 
-#[derive(Clone, Copy)]
-struct NormalisedMatch {
-    x1: Vector2<f64>,
-    x2: Vector2<f64>,
-}
-
-struct EssentialEightPoint {
-    /// Focal length in pixels: Sampson errors in the normalised plane are scaled to pixels.
-    focal: f64,
-}
-
-fn essential_from(data: &[NormalisedMatch]) -> Option<Matrix3<f64>> {
-    if data.len() < 8 {
-        return None;
-    }
-    let mut ata = SMatrix::<f64, 9, 9>::zeros();
-    for m in data {
-        let (a, b) = (m.x1, m.x2);
-        let row = SMatrix::<f64, 1, 9>::from_row_slice(&[
-            b.x * a.x,
-            b.x * a.y,
-            b.x,
-            b.y * a.x,
-            b.y * a.y,
-            b.y,
-            a.x,
-            a.y,
-            1.0,
-        ]);
-        ata += row.transpose() * row;
-    }
-    let eig = ata.symmetric_eigen();
-    let k = eig.eigenvalues.imin();
-    let e = eig.eigenvectors.column(k);
-    let e = Matrix3::new(e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7], e[8]);
-    // Project onto essential matrices: singular values (1, 1, 0).
-    let svd = e.svd(true, true);
-    let (u, vt) = (svd.u?, svd.v_t?);
-    Some(u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)) * vt)
-}
-
-impl Estimator for EssentialEightPoint {
-    type Datum = NormalisedMatch;
-    type Model = Matrix3<f64>;
-    fn min_sample_size(&self) -> usize {
-        8
-    }
-    fn fit_minimal(&self, sample: &[NormalisedMatch], models: &mut Vec<Matrix3<f64>>) {
-        models.extend(essential_from(sample));
-    }
-    fn fit_nonminimal(&self, data: &[NormalisedMatch], models: &mut Vec<Matrix3<f64>>) {
-        models.extend(essential_from(data));
-    }
-    fn squared_error(&self, e: &Matrix3<f64>, m: &NormalisedMatch) -> f64 {
-        // Sampson distance.
-        let (a, b) = (m.x1.push(1.0), m.x2.push(1.0));
-        let ea = e * a;
-        let etb = e.transpose() * b;
-        let num = b.dot(&ea);
-        let den = ea.x * ea.x + ea.y * ea.y + etb.x * etb.x + etb.y * etb.y;
-        if den <= 0.0 {
-            return f64::INFINITY;
-        }
-        num * num / den * self.focal * self.focal
-    }
-}
-
-/// The (R, t) of `E = [t]x R` that puts the most matches in front of both cameras.
-fn decompose_essential(e: &Matrix3<f64>, data: &[NormalisedMatch]) -> Option<Rigid3> {
-    let svd = e.svd(true, true);
-    let (mut u, mut vt) = (svd.u?, svd.v_t?);
-    if u.determinant() < 0.0 {
-        u = -u;
-    }
-    if vt.determinant() < 0.0 {
-        vt = -vt;
-    }
-    let w = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
-    let t = u.column(2).into_owned();
-    let mut best: Option<(usize, Rigid3)> = None;
-    for r in [u * w * vt, u * w.transpose() * vt] {
-        for tt in [t, -t] {
-            let pose = Rigid3 {
-                rotation: UnitQuaternion::from_matrix(&r),
-                translation: tt,
-            };
-            let count = data
-                .iter()
-                .filter(|m| {
-                    two_view_point(&pose, &m.x1, &m.x2).is_some_and(|x| {
-                        x.z > 0.0 && (pose.rotation * x + pose.translation).z > 0.0
-                    })
-                })
-                .count();
-            if best.as_ref().is_none_or(|b| count > b.0) {
-                best = Some((count, pose));
-            }
-        }
-    }
-    best.map(|b| b.1)
-}
-
-/// Midpoint-free linear triangulation of one match for the cheirality test (camera 1 at the origin).
-fn two_view_point(pose: &Rigid3, x1: &Vector2<f64>, x2: &Vector2<f64>) -> Option<Vector3<f64>> {
-    let p1 = Rigid3::identity().to_matrix();
-    let p2 = pose.to_matrix();
-    crate::triangulation::triangulate_dlt(&[(p1, *x1), (p2, *x2)])
-}
-
+/// `cam2_from_cam1` (`|t| = 1`) and which of `pts` (pixels of image 1, image 2) are inliers.
 fn estimate_relative_pose(
     c1: &Camera,
     c2: &Camera,
     pts: &[(Point2<f64>, Point2<f64>)],
     seed: u64,
-) -> Option<Rigid3> {
-    let data: Vec<NormalisedMatch> = pts
+) -> Option<(Rigid3, Vec<bool>)> {
+    let mut kept = Vec::with_capacity(pts.len());
+    let data: Vec<Correspondence> = pts
         .iter()
-        .filter_map(|(a, b)| {
-            Some(NormalisedMatch {
-                x1: c1.cam_from_image(a)?.coords,
-                x2: c2.cam_from_image(b)?.coords,
-            })
+        .enumerate()
+        .filter_map(|(i, (a, b))| {
+            let c = Correspondence {
+                x1: c1.cam_from_image(a)?,
+                x2: c2.cam_from_image(b)?,
+            };
+            kept.push(i);
+            Some(c)
         })
         .collect();
-    let est = EssentialEightPoint {
-        focal: 0.5 * (c1.focal() + c2.focal()),
-    };
+    let focal_px = 0.5 * (c1.focal() + c2.focal());
     let cfg = RansacConfig {
         max_error: 4.0,
         seed,
         ..RansacConfig::default()
     };
-    let report = ransac(&est, &data, &cfg).ok()?;
-    let inl: Vec<NormalisedMatch> = data
+    let report = ransac(&EssentialEstimator { focal_px }, &data, &cfg).ok()?;
+    let inl: Vec<Correspondence> = data
         .iter()
         .zip(&report.inliers)
         .filter(|x| *x.1)
         .map(|x| *x.0)
         .collect();
-    decompose_essential(&report.model, &inl)
+    let (pose, _) = pose_from_essential(&report.model, &inl)?;
+    let pose = refine_relative_pose(&pose, &inl, 1.0 / focal_px, 30);
+    let mut inliers = vec![false; pts.len()];
+    for (k, &i) in kept.iter().enumerate() {
+        inliers[i] = report.inliers[k];
+    }
+    Some((pose, inliers))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -674,6 +575,13 @@ impl<'a> Builder<'a> {
                     "image {image_id}: not registered{}: {e}",
                     if relaxed { " (relaxed)" } else { "" }
                 );
+                if relaxed
+                    && camera_known
+                    && let Some(pose) = self.pose_through_pair(image_id, &camera, &pixels, &world)
+                {
+                    self.add_image(image_id, pose);
+                    return true;
+                }
                 return false;
             }
         };
@@ -722,6 +630,123 @@ impl<'a> Builder<'a> {
         }
         self.add_image(image_id, result.cam_from_world);
         true
+    }
+
+    /// The pose of an image too weakly tied to the model's points for PnP, through its
+    /// verified pair with a registered image: the relative pose of the pair under the model's
+    /// intrinsics (five-point essential matrix, `estimate_relative_pose`) fixes the rotation
+    /// and the direction of the baseline; the image's few 2D-3D correspondences fix the one
+    /// remaining unknown, the baseline length (median of the per-point least-squares scales).
+    /// Accepted when the essential matrix keeps `retry_min_inliers` matches and half of the
+    /// pair's, and at least `PAIR_MIN_CHECKS` correspondences (and half of them) reproject
+    /// within `filter_max_error_px` under the composed pose: one unknown fitted, the rest
+    /// independent checks. Pairs are tried strongest first.
+    fn pose_through_pair(
+        &self,
+        image_id: u32,
+        camera: &Camera,
+        pixels: &[Vector2<f64>],
+        world: &[Vector3<f64>],
+    ) -> Option<CamFromWorld> {
+        const PAIR_MIN_CHECKS: usize = 4;
+        if pixels.len() < PAIR_MIN_CHECKS {
+            return None;
+        }
+        let mut pairs: Vec<(&MapperPair, bool)> = self
+            .input
+            .pairs
+            .iter()
+            .filter_map(|p| {
+                if p.image2 == image_id && self.rec.images.contains_key(&p.image1) {
+                    Some((p, false))
+                } else if p.image1 == image_id && self.rec.images.contains_key(&p.image2) {
+                    Some((p, true))
+                } else {
+                    None
+                }
+            })
+            .filter(|(p, _)| p.inliers.len() >= self.config.retry_min_inliers && !p.homography)
+            .collect();
+        pairs.sort_by_key(|p| std::cmp::Reverse(p.0.inliers.len()));
+        let new_input = self.image_input(image_id);
+        for (pair, new_is_first) in pairs {
+            let other = if new_is_first {
+                pair.image2
+            } else {
+                pair.image1
+            };
+            let reg = &self.rec.images[&other];
+            let reg_camera = &self.rec.cameras[&reg.camera_id];
+            // Registered image first: cam_new_from_cam_reg.
+            let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
+                .inliers
+                .iter()
+                .map(|m| {
+                    let (kr, kn) = if new_is_first {
+                        (m[1], m[0])
+                    } else {
+                        (m[0], m[1])
+                    };
+                    (reg.keypoints[kr as usize], new_input.keypoints[kn as usize])
+                })
+                .collect();
+            let Some((rel, inliers)) =
+                estimate_relative_pose(reg_camera, camera, &pts, image_id as u64)
+            else {
+                continue;
+            };
+            let n_inl = inliers.iter().filter(|&&b| b).count();
+            if n_inl < self.config.retry_min_inliers || 2 * n_inl < pts.len() {
+                continue;
+            }
+            // x_new = R_rel (R_reg X + t_reg) + s t_rel: each correspondence's normalised
+            // observation m gives (a.x + s t.x) = m.x (a.z + s t.z), likewise y; least squares
+            // in s per point.
+            let mut scales: Vec<f64> = pixels
+                .iter()
+                .zip(world)
+                .filter_map(|(px, x)| {
+                    let m = camera.cam_from_image(&Point2::from(*px))?;
+                    let a = rel.rotation
+                        * (reg.cam_from_world.0.rotation * x + reg.cam_from_world.0.translation);
+                    let t = rel.translation;
+                    let (ux, uy) = (t.x - m.x * t.z, t.y - m.y * t.z);
+                    let (vx, vy) = (m.x * a.z - a.x, m.y * a.z - a.y);
+                    let den = ux * ux + uy * uy;
+                    (den > 1e-12).then(|| (ux * vx + uy * vy) / den)
+                })
+                .filter(|s| *s > 0.0)
+                .collect();
+            if scales.len() < PAIR_MIN_CHECKS {
+                continue;
+            }
+            let scale = median(std::mem::take(&mut scales));
+            let pose = CamFromWorld(Rigid3::new(
+                rel.rotation * reg.cam_from_world.0.rotation,
+                rel.rotation * reg.cam_from_world.0.translation + scale * rel.translation,
+            ));
+            let good = pixels
+                .iter()
+                .zip(world)
+                .filter(|(px, x)| {
+                    let xc = pose.0.rotation * *x + pose.0.translation;
+                    xc.z > 0.0
+                        && camera.image_from_cam(&xc.into()).is_some_and(|p| {
+                            (p.coords - *px).norm() <= self.config.filter_max_error_px
+                        })
+                })
+                .count();
+            tracing::debug!(
+                "image {image_id} through its pair with image {other}: {n_inl} of {} matches fit the relative pose; {good} of {} correspondences within {} px at baseline scale {scale:.4}",
+                pts.len(),
+                pixels.len(),
+                self.config.filter_max_error_px
+            );
+            if good >= PAIR_MIN_CHECKS && 2 * good >= pixels.len() {
+                return Some(pose);
+            }
+        }
+        None
     }
 
     /// Tries the unregistered images, most visible points first; the first that registers.
@@ -1182,7 +1207,7 @@ fn try_initial_pair(
                 &pts,
                 (pair.image1 as u64) << 32 | pair.image2 as u64,
             ) {
-                Some(p) => p,
+                Some(p) => p.0,
                 None => return Ok(InitAttempt::Failed),
             }
         }
@@ -1427,6 +1452,7 @@ mod tests {
     use crate::evaluate::evaluate_poses;
     use crate::synthetic::{SplitMix, SyntheticConfig, look_at_origin, synthetic_reconstruction};
     use fresco_core::NoProgress;
+    use nalgebra::UnitQuaternion;
 
     fn config() -> MapperConfig {
         MapperConfig {
