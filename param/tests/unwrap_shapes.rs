@@ -182,6 +182,26 @@ fn bad_input_is_repaired_with_warnings() {
     let metrics = measure(&m).unwrap();
     assert_eq!(metrics.flipped, 0);
     assert_eq!(metrics.overlapping_pairs, 0);
+    // With Reeb-graph charts asked for: the segmentation refuses the non-manifold mesh, the
+    // unwrap says so and starts from components instead, with the same repairs.
+    let mut m = mesh.clone();
+    let cfg = UnwrapConfig {
+        reeb_charts: true,
+        ..config()
+    };
+    let report = unwrap(&mut m, &cfg, &NoProgress).unwrap();
+    let all = report.warnings.join("\n");
+    assert!(
+        all.contains("non-manifold mesh: charts start from connected components"),
+        "{all}"
+    );
+    assert!(
+        all.contains("isolated vertex") && all.contains("zero-area face"),
+        "{all}"
+    );
+    let metrics = measure(&m).unwrap();
+    assert_eq!((metrics.flipped, metrics.overlapping_pairs), (0, 0));
+    assert_eq!(m.face_groups.as_ref().unwrap().len(), mesh.faces.len());
 }
 
 /// A face that repeats a vertex cannot be a triangle: a clear error naming it.
