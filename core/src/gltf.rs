@@ -29,7 +29,7 @@ use crate::mesh::{Mesh, Uv};
 /// Everything [`encode_glb`] can refuse.
 #[derive(Debug, thiserror::Error)]
 pub enum GlbError {
-    #[error("the mesh is invalid")]
+    #[error(transparent)]
     InvalidMesh(#[from] crate::mesh::MeshError),
     #[error("the mesh has no faces; glTF needs at least one triangle")]
     Empty,
