@@ -17,8 +17,8 @@
 # Usage:  bench/pst.sh            everything (10M and 100M meshes; ~15 min on a quiet machine)
 #         QUICK=1 bench/pst.sh    10M mesh only: sampling at alpha 0 three times, end to end,
 #                                 lookups (< 5 min on a quiet machine once built)
-# Options: RUNS=3 SIZES="10000000 100000000" N=100000 RUNS_LARGE=1 NO_BUILD=1 (use built
-# binaries: FRESCO=... EX=...). Outputs: bench/out/pst (meshes, runs.jsonl), the PSTs on
+# Options: RUNS=3 SIZES="10000000 100000000" ALPHAS="0 half" N=100000 RUNS_LARGE=1 NO_REF=1
+# (no Open3D runs) NO_BUILD=1 (use built binaries: FRESCO=... EX=...). Outputs: bench/out/pst (meshes, runs.jsonl), the PSTs on
 # /dev/shm (removed at the end); the tables are printed at the end.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -54,7 +54,7 @@ df -h "$OUT" | tail -n 1
 RUNS_FILE="$OUT/runs.jsonl"
 : > "$RUNS_FILE"
 have_o3d=0
-"$PYTHON" -c "import open3d" 2>/dev/null && have_o3d=1
+[[ -z ${NO_REF:-} ]] && "$PYTHON" -c "import open3d" 2>/dev/null && have_o3d=1
 
 for T in $SIZES; do
     mesh="$OUT/mesh_$T.ply"
