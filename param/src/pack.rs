@@ -17,7 +17,9 @@
 //!    rather than over every texel.
 //! 3. Without a given density, the density that fills one atlas is found by packing into a
 //!    strip of the atlas' width and rescaling by the square root of width / used height
-//!    (a few rounds; the gutter does not scale, hence the iteration).
+//!    (a few rounds; the gutter does not scale, hence the iteration), then a bisection.
+//!    Atlases above 1024 texels search the density at 1024 (gutter scaled alike) and pack
+//!    once at full resolution, shrinking by 3% while that does not fit.
 
 use fresco_core::nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
@@ -104,12 +106,52 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
     if !(total > 0.0 && total.is_finite()) {
         return Err(ParamError::Config("the charts have no area to pack".into()));
     }
+    if w <= SEARCH_SIZE {
+        let (tpu, rasters, placements) = search_density(charts, &base, total, w, cfg.gutter)?;
+        return Ok(finish(placements, 1, tpu, &base, &rasters));
+    }
+    // Large atlas: the density is searched at SEARCH_SIZE (gutter scaled alike), then the
+    // charts are packed once at full resolution, shrinking by 3% while they do not fit.
+    let k = w as f64 / SEARCH_SIZE as f64;
+    let g = if cfg.gutter == 0 {
+        0
+    } else {
+        ((cfg.gutter as f64 / k).round() as u32).max(1)
+    };
+    let (coarse, _, _) = search_density(charts, &base, total, SEARCH_SIZE, g)?;
+    let mut tpu = coarse * k;
+    for _ in 0..12 {
+        let rasters = rasterise_all(charts, &base, tpu, cfg.gutter);
+        if let Ok((placements, _, used)) = place(&rasters, w, w, true)
+            && used <= w
+        {
+            return Ok(finish(placements, 1, tpu, &base, &rasters));
+        }
+        tpu *= 0.97;
+    }
+    let (tpu, rasters, placements) = search_density(charts, &base, total, w, cfg.gutter)?;
+    Ok(finish(placements, 1, tpu, &base, &rasters))
+}
+
+/// Atlas size up to which the density is searched at full resolution (see [`pack`]).
+const SEARCH_SIZE: u32 = 1024;
+
+/// The largest density at which the charts fit one `w` x `w` atlas with `gutter`: rasters
+/// and placements at that density (module documentation, step 3).
+#[allow(clippy::type_complexity)]
+fn search_density(
+    charts: &[ChartShape],
+    base: &[Matrix2<f64>],
+    total: f64,
+    w: u32,
+    gutter: u32,
+) -> Result<(f64, Vec<Raster>, Vec<Spot>), ParamError> {
     // Start from 70% fill ignoring gutters; then rescale by sqrt(width / used height).
     let mut tpu = (0.7 * (w as f64).powi(2) / total).sqrt();
     let mut best: Option<(f64, Vec<Raster>, Vec<Spot>)> = None;
     let mut lowest_failure = f64::INFINITY;
     for _round in 0..8 {
-        let rasters = rasterise_all(charts, &base, tpu, cfg.gutter);
+        let rasters = rasterise_all(charts, base, tpu, gutter);
         let strip = 16 * w;
         match place(&rasters, w, strip, true) {
             Ok((placements, _, used)) => {
@@ -144,7 +186,7 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
                 break;
             }
             let mid = (lo * lowest_failure).sqrt();
-            let rasters = rasterise_all(charts, &base, mid, cfg.gutter);
+            let rasters = rasterise_all(charts, base, mid, gutter);
             match place(&rasters, w, 16 * w, true) {
                 Ok((placements, _, used)) if used <= w => {
                     lo = mid;
@@ -160,7 +202,7 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
             // Shrink until it fits: a strip never fit inside the atlas in 8 rounds.
             let mut t = tpu;
             loop {
-                let rasters = rasterise_all(charts, &base, t, cfg.gutter);
+                let rasters = rasterise_all(charts, base, t, gutter);
                 if let Ok((p, _, used)) = place(&rasters, w, 16 * w, true)
                     && used <= w
                 {
@@ -173,7 +215,7 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
             }
         }
     };
-    Ok(finish(placements, 1, tpu, &base, &rasters))
+    Ok((tpu, rasters, placements))
 }
 
 fn finish(
@@ -565,7 +607,10 @@ impl Bitmap {
                 }
                 return Some((x, y));
             }
-            y += 1;
+            // Rows one at a time for small charts; tall charts (large atlases) step by 1/64
+            // of their height, which wastes at most that much above them and divides the
+            // search by the stride.
+            y += (dh / 64).max(1);
         }
         None
     }
