@@ -10,7 +10,8 @@
 //!
 //! Modules, in pipeline order: `input` (point streams), `mgrid` (the depth-2 multi-grid),
 //! `node_files` (per-1-node files), `cluster` (2-node samples), `sampling`, `samples` (the
-//! in-core set), `index` (nearest neighbours), `field` (the PST), `store` (the PST folder).
+//! in-core set), `index` (nearest neighbours), `sample_grid` (the cells of batched lookups),
+//! `field` (the PST), `store` (the PST folder).
 
 // Loops over the 3 axes index several arrays at once; iterator chains would read worse.
 #![allow(clippy::needless_range_loop)]

@@ -21,7 +21,6 @@
 //! | 36 | f32: cube side (world units) |
 //! | 40 | C nodes, root first, each: u32 index of its first child (0 = leaf), then W x f32 value |
 
-use std::io::Write;
 use std::path::Path;
 
 use crate::error::{PstError, Result};
@@ -133,8 +132,6 @@ impl OctreeTexture {
 
     /// Writes the layout above atomically.
     pub fn save(&self, path: &Path) -> Result<()> {
-        let io = |e| PstError::io(path, "cannot write the octree texture", e);
-        let tmp = path.with_extension("foct.partial");
         let mut buf = Vec::with_capacity(40 + self.children.len() * (4 + 4 * self.width));
         buf.extend_from_slice(MAGIC);
         for v in [
@@ -154,9 +151,9 @@ impl OctreeTexture {
                 buf.extend_from_slice(&v.to_le_bytes());
             }
         }
-        let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(&buf).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        Ok(fresco_core::atomic_file::write_bytes_atomically(
+            path, &buf,
+        )?)
     }
 
     /// Reads a file written by [`OctreeTexture::save`].

@@ -13,7 +13,7 @@
 //! | .. | 1-node ids, c x u32 |
 //! | .. | attributes, c x w x f32 |
 
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufReader, Read, Write};
 use std::path::Path;
 
 use crate::error::{PstError, Result};
@@ -106,29 +106,17 @@ impl SampleSet {
 
     /// Writes the set atomically (temporary name in the same folder, then rename).
     pub fn save(&self, path: &Path) -> Result<()> {
-        let tmp = path.with_extension("bin.partial");
-        let io = |e| PstError::io(path, "cannot write samples", e);
-        {
-            let file = std::fs::File::create(&tmp).map_err(io)?;
-            let mut w = BufWriter::with_capacity(1 << 20, file);
-            w.write_all(MAGIC).map_err(io)?;
-            w.write_all(&(self.len() as u64).to_le_bytes())
-                .map_err(io)?;
-            w.write_all(&(self.width as u32).to_le_bytes())
-                .map_err(io)?;
-            w.write_all(&0u32.to_le_bytes()).map_err(io)?;
-            w.write_all(bytemuck::cast_slice(&self.positions))
-                .map_err(io)?;
-            w.write_all(bytemuck::cast_slice(&self.normals))
-                .map_err(io)?;
-            w.write_all(bytemuck::cast_slice(&self.nodes)).map_err(io)?;
-            w.write_all(bytemuck::cast_slice(&self.attrs)).map_err(io)?;
-            w.into_inner()
-                .map_err(|e| io(e.into_error()))?
-                .sync_data()
-                .map_err(io)?;
-        }
-        std::fs::rename(&tmp, path).map_err(io)
+        fresco_core::atomic_file::write_atomically(path, |w| {
+            w.write_all(MAGIC)?;
+            w.write_all(&(self.len() as u64).to_le_bytes())?;
+            w.write_all(&(self.width as u32).to_le_bytes())?;
+            w.write_all(&0u32.to_le_bytes())?;
+            w.write_all(bytemuck::cast_slice(&self.positions))?;
+            w.write_all(bytemuck::cast_slice(&self.normals))?;
+            w.write_all(bytemuck::cast_slice(&self.nodes))?;
+            w.write_all(bytemuck::cast_slice(&self.attrs))
+        })?;
+        Ok(())
     }
 
     /// Reads a set written by [`SampleSet::save`].

@@ -302,12 +302,12 @@ impl Pst {
     /// Writes the manifest and the samples (each atomically).
     pub fn save(&self) -> Result<()> {
         self.samples.save(&self.dir.join(SAMPLES))?;
-        let mpath = self.dir.join(MANIFEST);
-        let tmp = self.dir.join(format!("{MANIFEST}.partial"));
         let text = serde_json::to_string_pretty(&self.manifest)
             .map_err(|e| PstError::store(&self.dir, format!("cannot encode the manifest: {e}")))?;
-        std::fs::write(&tmp, text).map_err(|e| PstError::io(&tmp, "cannot write", e))?;
-        std::fs::rename(&tmp, &mpath).map_err(|e| PstError::io(&mpath, "cannot write", e))
+        Ok(fresco_core::atomic_file::write_bytes_atomically(
+            &self.dir.join(MANIFEST),
+            text.as_bytes(),
+        )?)
     }
 
     /// Offset and width of a channel in the attributes.
