@@ -46,15 +46,15 @@ pub struct UnwrapConfig {
     /// Charts covering less than this fraction of their UV convex hull (C shapes, bent
     /// bands, spirals, which pack badly) are split. Default 0.7: measured on the five bench
     /// meshes at 0.5 / 0.6 / 0.7, utilisation rose on every one of them with it (torus 0.51 ->
-    /// 0.69, double torus 0.59 -> 0.69, Poisson temple 0.64 -> 0.68; sphere and temple
+    /// 0.69, double torus 0.59 -> 0.69, an earlier Poisson temple 0.64 -> 0.68; sphere and temple
     /// unchanged), for more charts (bench/RESULTS.md, issue 6).
     pub min_hull_fill: f64,
     /// Iterations of the stretch optimisation (0 turns it off). Default 6.
     pub stretch_iterations: u32,
     /// Start from the Reeb-graph charts; `false` (default) starts from connected components and
     /// lets the splitting make the charts. Measured on the six bench meshes (bench/RESULTS.md,
-    /// issue 6): the Reeb charts give shorter seams on five, but higher stretch and lower
-    /// utilisation on five (torus: 0.54 against 0.69), and segmenting costs time.
+    /// issue 6): the Reeb charts give shorter seams on five, but higher stretch on five and
+    /// lower utilisation on four (torus: 0.54 against 0.69), and segmenting costs time.
     pub reeb_charts: bool,
     /// Settings of the Reeb-graph segmentation.
     pub charts: crate::charts::ChartConfig,
