@@ -52,7 +52,7 @@ if [[ $WHAT == whole || $WHAT == all ]]; then
         esac
         cw=(); cc=(); fw=(); fc=(); cph=(); fph=()
         for r in $(seq "$RUNS"); do
-            line=$($PYTHON bench/sfm_colmap.py "$imgs")
+            line=$($PYTHON bench/sfm_colmap.py "$imgs" 2>/dev/null)
             echo "colmap $set run $r: $line"
             cw+=("$(echo "$line" | field wall)"); cc+=("$(echo "$line" | field cpu)")
             cph+=("$(echo "$line" | field extract) $(echo "$line" | field match) $(echo "$line" | field map)")
@@ -74,7 +74,8 @@ if [[ $WHAT == whole || $WHAT == all ]]; then
         col() { local k=$1; shift; printf '%s\n' "$@" | awk -v k="$k" '{print $k}' | median; }
         ce=$(col 1 "${cph[@]}"); cm=$(col 2 "${cph[@]}"); cmap=$(col 3 "${cph[@]}")
         fe=$(col 1 "${fph[@]}"); fm=$(col 2 "${fph[@]}"); fmap=$(col 3 "${fph[@]}")
-        table+=("| $set | $mcw | $mcc | $ce / $cm / $cmap | $mfw | $mfc | $fe / $fm / $fmap | $(echo "scale=2; $mfw / $mcw" | bc) |")
+        r1() { printf '%.1f' "$1"; }
+        table+=("| $set | $(r1 "$mcw") | $(r1 "$mcc") | $(r1 "$ce") / $(r1 "$cm") / $(r1 "$cmap") | $(r1 "$mfw") | $(r1 "$mfc") | $(r1 "$fe") / $(r1 "$fm") / $(r1 "$fmap") | $(printf '%.2f' "$(echo "$mfw / $mcw" | bc -l)") |")
     done
     echo
     echo "| set | COLMAP wall s | COLMAP CPU s | COLMAP extract / match / map s | fresco wall s | fresco CPU s | fresco features / match / sfm s | fresco/COLMAP wall |"
