@@ -151,12 +151,20 @@ pub fn verify_pair(
             x2: normalise_pixel(prior2, &c.x2),
         })
         .collect();
+    // A model is only wanted with at least `min_inliers` inliers, i.e. an inlier ratio of at
+    // least min_inliers / n: once enough samples were drawn to find such a model with the
+    // requested confidence, a RANSAC that has not found one can stop. Weak pairs (15-40
+    // matches, most of an exhaustive set) then draw hundreds of samples instead of 10000 per
+    // model; pairs with more matches keep the default floor of 0.1.
+    let default = RansacConfig::default();
     let ransac_config = RansacConfig {
         max_error: config.max_error_px,
         confidence: config.confidence,
         max_iterations: config.max_iterations,
+        min_inlier_ratio: (config.min_inliers as f64 / matches.len() as f64)
+            .clamp(default.min_inlier_ratio, 1.0),
         seed: config.seed,
-        ..Default::default()
+        ..default
     };
     let count = |r: &Option<RansacReport<Matrix3<f64>>>| r.as_ref().map_or(0, |r| r.num_inliers);
     let f = ransac(&FundamentalEstimator::default(), &pixels, &ransac_config).ok();
