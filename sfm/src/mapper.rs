@@ -11,9 +11,17 @@
 //!    or small triangulation angles are filtered; each time the model has grown by
 //!    `global_ba_growth` (10%, COLMAP's ratio) a global BA runs, followed by retriangulation
 //!    of the tracks that failed before;
-//! 4. when no image registers any more, a final global BA; if images are left that can start
-//!    a model of their own, the next model is built from them. Models are returned largest
-//!    first; input that cannot start any model is reported as degenerate, with the reason.
+//! 4. when no image registers any more, a global BA and retriangulation, then every image is
+//!    tried again with relaxed thresholds (`retry_min_inliers`, an inlier ratio and a
+//!    reprojection check after refinement); an image too weakly tied to the points for PnP
+//!    registers through its strongest verified pair with a registered image (relative pose
+//!    by the five-point essential matrix, baseline length from its few 2D-3D
+//!    correspondences);
+//! 5. a final global BA; if images are left that can start a model of their own, the next
+//!    model is built from them. Models sharing tracks are merged (a similarity from their
+//!    common points by Umeyama in RANSAC, two-way reprojection checks), adjusted and grown
+//!    again. Models are returned largest first; input that cannot start any model is reported
+//!    as degenerate, with the reason.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
@@ -890,8 +898,8 @@ struct Model {
     gauge: (u32, u32),
 }
 
-/// Registers images into the model until none fits, then adjusts it globally (step 3 and 4 of
-/// the module documentation).
+/// Registers images into the model until none fits, then adjusts it globally (steps 3 to 5
+/// of the module documentation).
 fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(), MapperError> {
     let config = b.config;
     let mut last_global = b.rec.images.len();
