@@ -442,6 +442,87 @@ fn survivors(
     ids: &[u32],
     out: &mut Vec<u64>,
 ) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked above).
+        return unsafe { survivors_avx2(p, tau, x, y, z, ids, out) };
+    }
+    survivors_portable(p, tau, x, y, z, ids, out)
+}
+
+/// True when [`survivors_avx2`] can run (the check is cached by std).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+/// [`survivors`] on 8-lane AVX registers (the crate is built for SSE2 only): the same
+/// operations in the same order, so the same f32 distances bit for bit (no FMA).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn survivors_avx2(
+    p: &[f32; 3],
+    tau: f32,
+    x: &[f32],
+    y: &[f32],
+    z: &[f32],
+    ids: &[u32],
+    out: &mut Vec<u64>,
+) -> usize {
+    use std::arch::x86_64::*;
+    out.clear();
+    let n = x.len().min(y.len()).min(z.len()) / LANES * LANES;
+    let (px, py, pz) = (
+        _mm256_set1_ps(p[0]),
+        _mm256_set1_ps(p[1]),
+        _mm256_set1_ps(p[2]),
+    );
+    let t = _mm256_set1_ps(tau);
+    let mut d = [0f32; LANES];
+    for i in (0..n).step_by(LANES) {
+        // SAFETY: i + 8 <= n <= the length of each of x, y and z.
+        let (cx, cy, cz) = unsafe {
+            (
+                _mm256_loadu_ps(x.as_ptr().add(i)),
+                _mm256_loadu_ps(y.as_ptr().add(i)),
+                _mm256_loadu_ps(z.as_ptr().add(i)),
+            )
+        };
+        let (dx, dy, dz) = (
+            _mm256_sub_ps(px, cx),
+            _mm256_sub_ps(py, cy),
+            _mm256_sub_ps(pz, cz),
+        );
+        let dd = _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+            _mm256_mul_ps(dz, dz),
+        );
+        let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(dd, t)) as u32;
+        if mask == 0 {
+            continue;
+        }
+        // SAFETY: d holds 8 f32.
+        unsafe { _mm256_storeu_ps(d.as_mut_ptr(), dd) };
+        while mask != 0 {
+            let l = mask.trailing_zeros() as usize;
+            out.push((d[l].to_bits() as u64) << 32 | ids[i + l] as u64);
+            mask &= mask - 1;
+        }
+    }
+    out.len()
+}
+
+#[inline]
+fn survivors_portable(
+    p: &[f32; 3],
+    tau: f32,
+    x: &[f32],
+    y: &[f32],
+    z: &[f32],
+    ids: &[u32],
+    out: &mut Vec<u64>,
+) -> usize {
     out.clear();
     for (lane, ((cx, cy), cz)) in x
         .chunks_exact(LANES)
