@@ -163,10 +163,31 @@ impl<'a> Field<'a> {
             .par_chunks(CHUNK)
             .zip(out.par_chunks_mut(CHUNK * w))
             .for_each_init(Scratch::default, |s, (pts, o)| {
+                #[cfg(target_arch = "x86_64")]
+                if has_avx2() {
+                    // SAFETY: the CPU supports AVX2 (checked above).
+                    return unsafe { self.eval_chunk_avx2(grid, pts, o, s) };
+                }
                 self.eval_chunk(grid, pts, o, s)
             });
     }
 
+    /// [`Field::eval_chunk`] compiled for AVX2 (the crate is built for SSE2 only): the
+    /// selection, gathering and blending loops on wider registers. No FMA, so the same
+    /// arithmetic bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn eval_chunk_avx2(
+        &self,
+        grid: &SampleGrid,
+        pts: &[[f32; 3]],
+        out: &mut [f32],
+        s: &mut Scratch,
+    ) {
+        self.eval_chunk(grid, pts, out, s)
+    }
+
+    #[inline(always)]
     fn eval_chunk(&self, grid: &SampleGrid, pts: &[[f32; 3]], out: &mut [f32], s: &mut Scratch) {
         // Group the queries by cell: a hash table from cell key to a group in order of first
         // appearance (a mesh's vertex stream repeats the previous query's cell most of the
@@ -251,6 +272,7 @@ impl<'a> Field<'a> {
     /// vectorises), the candidates within a bound of the k-th distance kept (branch-free
     /// compaction), and the k smallest of those few by insertion.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn eval_cell(
         &self,
         grid: &SampleGrid,
@@ -315,6 +337,13 @@ impl<'a> Field<'a> {
             }
             // The k smallest of the survivors (unordered) in found[..k].
             keep_smallest(&mut s.found, k);
+            if self.blend_hermite_packed(&s.found[..k], &grid.attrs, o) {
+                let dk2 = s.found[..k]
+                    .iter()
+                    .fold(0f32, |m, &v| m.max(f32::from_bits((v >> 32) as u32)));
+                prev = Some((p, dk2.sqrt()));
+                continue;
+            }
             s.best.clear();
             s.best.extend(
                 s.found[..k]
@@ -327,8 +356,55 @@ impl<'a> Field<'a> {
         }
     }
 
+    /// [`Field::blend`] for the Hermite kernel over at most [`PACKED_MAX`] neighbours packed
+    /// as by [`survivors`] (squared distance bits above the index): the distances, 1 - t and
+    /// weights computed on fixed arrays (vectorised), then accumulated in the same order as
+    /// `blend` does, so the same value bit for bit. Returns false (nothing written) when the
+    /// general path must run: another kernel, more neighbours, or the degenerate cases.
+    #[inline(always)]
+    fn blend_hermite_packed(&self, nb: &[u64], attrs: &[f32], out: &mut [f32]) -> bool {
+        let k = nb.len();
+        if self.cfg.kernel != Kernel::Hermite || k > PACKED_MAX || k == 0 {
+            return false;
+        }
+        let w = self.width();
+        let mut d2 = [0f32; PACKED_MAX];
+        for (d, &v) in d2.iter_mut().zip(nb) {
+            *d = f32::from_bits((v >> 32) as u32);
+        }
+        let dmax2 = d2[..k].iter().fold(0f32, |m, &x| m.max(x));
+        if dmax2 <= 0.0 {
+            return false;
+        }
+        let dmax = dmax2.sqrt();
+        let inv = 1.0 / dmax;
+        let mut wgt = [0f32; PACKED_MAX];
+        for (g, &x) in wgt.iter_mut().zip(&d2) {
+            let u = ((dmax - x.sqrt()) * inv).max(0.0);
+            *g = hermite_of_complement(u);
+        }
+        out.fill(0.0);
+        let mut total = 0f32;
+        for (&g, &v) in wgt[..k].iter().zip(nb) {
+            if g > 0.0 {
+                total += g;
+                let j = v as u32 as usize;
+                for (o, a) in out.iter_mut().zip(&attrs[j * w..][..w]) {
+                    *o += g * a;
+                }
+            }
+        }
+        if total <= 0.0 {
+            return false;
+        }
+        let inv = 1.0 / total;
+        out.iter_mut().for_each(|o| *o *= inv);
+        true
+    }
+
     /// The kernel-weighted average of the attributes of `nb` (squared distance, index into
     /// `attrs`, width floats per sample).
+    #[inline(always)]
     pub(crate) fn blend(&self, nb: &[(f32, u32)], attrs: &[f32], out: &mut [f32]) {
         let w = self.width();
         out.fill(0.0);
@@ -403,7 +479,7 @@ fn average<'b>(nb: impl Iterator<Item = &'b (f32, u32)>, attrs: &[f32], w: usize
 /// than k (the usual case: the bound keeps about k + 5): the largest are dropped one by one
 /// by maximum scans (the standard selection's insertion sort took a quarter of the lookup
 /// time on such short lists); longer lists go to the standard selection.
-#[inline]
+#[inline(always)]
 fn keep_smallest(v: &mut [u64], k: usize) {
     let m = v.len();
     if m <= k {
@@ -423,6 +499,9 @@ fn keep_smallest(v: &mut [u64], k: usize) {
         v.swap(at, len - 1);
     }
 }
+
+/// Neighbourhoods up to this size take [`Field::blend_hermite_packed`].
+const PACKED_MAX: usize = 16;
 
 /// Candidates handled together by [`survivors`] (two SSE or one AVX register of f32).
 const LANES: usize = 8;
