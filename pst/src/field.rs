@@ -385,12 +385,28 @@ impl<'a> Field<'a> {
         }
         out.fill(0.0);
         let mut total = 0f32;
-        for (&g, &v) in wgt[..k].iter().zip(nb) {
-            if g > 0.0 {
-                total += g;
-                let j = v as u32 as usize;
-                for (o, a) in out.iter_mut().zip(&attrs[j * w..][..w]) {
-                    *o += g * a;
+        if w == 3 {
+            // Colours: a fixed-size accumulator (no per-neighbour slicing), same operations.
+            let mut acc = [0f32; 3];
+            for (&g, &v) in wgt[..k].iter().zip(nb) {
+                if g > 0.0 {
+                    total += g;
+                    let j = v as u32 as usize;
+                    let a: &[f32; 3] = attrs[j * 3..j * 3 + 3].try_into().expect("3 floats");
+                    for c in 0..3 {
+                        acc[c] += g * a[c];
+                    }
+                }
+            }
+            out.copy_from_slice(&acc);
+        } else {
+            for (&g, &v) in wgt[..k].iter().zip(nb) {
+                if g > 0.0 {
+                    total += g;
+                    let j = v as u32 as usize;
+                    for (o, a) in out.iter_mut().zip(&attrs[j * w..][..w]) {
+                        *o += g * a;
+                    }
                 }
             }
         }
@@ -559,6 +575,9 @@ fn survivors_avx2(
     );
     let t = _mm256_set1_ps(tau);
     let mut d = [0f32; LANES];
+    // Written through the pointer below without per-push capacity checks.
+    out.reserve(n);
+    let mut m = 0;
     for i in (0..n).step_by(LANES) {
         // SAFETY: i + 8 <= n <= the length of each of x, y and z.
         let (cx, cy, cz) = unsafe {
@@ -585,11 +604,16 @@ fn survivors_avx2(
         unsafe { _mm256_storeu_ps(d.as_mut_ptr(), dd) };
         while mask != 0 {
             let l = mask.trailing_zeros() as usize;
-            out.push((d[l].to_bits() as u64) << 32 | ids[i + l] as u64);
+            let v = (d[l].to_bits() as u64) << 32 | ids[i + l] as u64;
+            // SAFETY: each of the n candidates is written at most once, m < n <= capacity.
+            unsafe { out.as_mut_ptr().add(m).write(v) };
+            m += 1;
             mask &= mask - 1;
         }
     }
-    out.len()
+    // SAFETY: the first m entries were written above (u64: no drop, any bits valid).
+    unsafe { out.set_len(m) };
+    m
 }
 
 #[inline]
