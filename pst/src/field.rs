@@ -295,6 +295,7 @@ impl<'a> Field<'a> {
         for v in [&mut s.cx, &mut s.cy, &mut s.cz] {
             v.resize(padded, f32::INFINITY);
         }
+        s.cid.resize(padded, 0);
         let (lo, hi) = grid.ring_box(c);
         // The previous query of the cell and its k-th distance: its k nearest are ring
         // samples, all within d_k(prev) + |p - prev| of p, a bound on d_k(p). Any threshold
@@ -574,17 +575,21 @@ fn survivors_avx2(
         _mm256_set1_ps(p[2]),
     );
     let t = _mm256_set1_ps(tau);
-    let mut d = [0f32; LANES];
-    // Written through the pointer below without per-push capacity checks.
-    out.reserve(n);
+    let n = n.min(ids.len() / LANES * LANES);
+    // Branch-free compaction: each lane group's survivors are moved to the front of the
+    // register (a permutation from the mask) and all 8 stored; the next group overwrites
+    // the non-survivors. Room for n + 8 entries.
+    out.reserve(n + LANES);
+    let dst = out.as_mut_ptr();
     let mut m = 0;
     for i in (0..n).step_by(LANES) {
-        // SAFETY: i + 8 <= n <= the length of each of x, y and z.
-        let (cx, cy, cz) = unsafe {
+        // SAFETY: i + 8 <= n <= the length of each of x, y, z and ids.
+        let (cx, cy, cz, idv) = unsafe {
             (
                 _mm256_loadu_ps(x.as_ptr().add(i)),
                 _mm256_loadu_ps(y.as_ptr().add(i)),
                 _mm256_loadu_ps(z.as_ptr().add(i)),
+                _mm256_loadu_si256(ids.as_ptr().add(i) as *const __m256i),
             )
         };
         let (dx, dy, dz) = (
@@ -596,25 +601,51 @@ fn survivors_avx2(
             _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
             _mm256_mul_ps(dz, dz),
         );
-        let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(dd, t)) as u32;
-        if mask == 0 {
-            continue;
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(dd, t)) as usize;
+        // SAFETY: COMPRESS has 256 rows of 8 u32.
+        let perm = unsafe { _mm256_loadu_si256(COMPRESS[mask].as_ptr() as *const __m256i) };
+        let pd = _mm256_permutevar8x32_epi32(_mm256_castps_si256(dd), perm);
+        let pi = _mm256_permutevar8x32_epi32(idv, perm);
+        // (distance bits << 32) | id, as survivors_portable packs them.
+        let lo = _mm256_or_si256(
+            _mm256_slli_epi64::<32>(_mm256_cvtepu32_epi64(_mm256_castsi256_si128(pd))),
+            _mm256_cvtepu32_epi64(_mm256_castsi256_si128(pi)),
+        );
+        let hi = _mm256_or_si256(
+            _mm256_slli_epi64::<32>(_mm256_cvtepu32_epi64(_mm256_extracti128_si256::<1>(pd))),
+            _mm256_cvtepu32_epi64(_mm256_extracti128_si256::<1>(pi)),
+        );
+        // SAFETY: m <= i <= n - 8 and the capacity is at least n + 8.
+        unsafe {
+            _mm256_storeu_si256(dst.add(m) as *mut __m256i, lo);
+            _mm256_storeu_si256(dst.add(m + 4) as *mut __m256i, hi);
         }
-        // SAFETY: d holds 8 f32.
-        unsafe { _mm256_storeu_ps(d.as_mut_ptr(), dd) };
-        while mask != 0 {
-            let l = mask.trailing_zeros() as usize;
-            let v = (d[l].to_bits() as u64) << 32 | ids[i + l] as u64;
-            // SAFETY: each of the n candidates is written at most once, m < n <= capacity.
-            unsafe { out.as_mut_ptr().add(m).write(v) };
-            m += 1;
-            mask &= mask - 1;
-        }
+        m += mask.count_ones() as usize;
     }
     // SAFETY: the first m entries were written above (u64: no drop, any bits valid).
     unsafe { out.set_len(m) };
     m
 }
+
+/// Row `mask`: the indices of the set bits of `mask` in ascending order, then zeros (the lane
+/// permutation that moves a group's survivors to the front, in their order).
+#[cfg(target_arch = "x86_64")]
+static COMPRESS: [[u32; LANES]; 256] = {
+    let mut t = [[0u32; LANES]; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let (mut j, mut l) = (0, 0);
+        while l < LANES {
+            if mask & (1 << l) != 0 {
+                t[mask][j] = l as u32;
+                j += 1;
+            }
+            l += 1;
+        }
+        mask += 1;
+    }
+    t
+};
 
 #[inline]
 fn survivors_portable(
