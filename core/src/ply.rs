@@ -144,7 +144,7 @@ pub struct ElementDef {
 
 impl ElementDef {
     /// Bytes per item in a binary file when every property is a scalar.
-    fn fixed_size(&self) -> Option<usize> {
+    pub fn fixed_size(&self) -> Option<usize> {
         self.properties
             .iter()
             .map(|p| match p.kind {
@@ -766,8 +766,10 @@ fn face_plan(path: &Path, e: &ElementDef) -> Result<FacePlan, FormatError> {
     })
 }
 
+/// The scalar of type `ty` at the start of `b` (big-endian when `BIG`), as f64: the one
+/// binary decoder, shared by the streaming reader and memory-mapped readers (fresco-pst).
 #[inline(always)]
-fn decode<const BIG: bool>(b: &[u8], ty: ScalarType) -> f64 {
+pub fn decode_scalar<const BIG: bool>(b: &[u8], ty: ScalarType) -> f64 {
     macro_rules! get {
         ($t:ty, $n:expr) => {{
             let mut a = [0u8; $n];
@@ -1035,9 +1037,9 @@ impl<R: Read> PlyReader<R> {
         }
         let b = self.src.available();
         let v = if big {
-            decode::<true>(b, t)
+            decode_scalar::<true>(b, t)
         } else {
-            decode::<false>(b, t)
+            decode_scalar::<false>(b, t)
         };
         self.src.consume(t.size());
         Ok(v)
@@ -1151,11 +1153,11 @@ impl<R: Read> PlyReader<R> {
             let mut vals = [0.0f64; V_SLOTS];
             if big {
                 for &(off, t, slot) in wanted {
-                    vals[slot as usize] = decode::<true>(&rec[off..], t);
+                    vals[slot as usize] = decode_scalar::<true>(&rec[off..], t);
                 }
             } else {
                 for &(off, t, slot) in wanted {
-                    vals[slot as usize] = decode::<false>(&rec[off..], t);
+                    vals[slot as usize] = decode_scalar::<false>(&rec[off..], t);
                 }
             }
             self.src.consume(size);
@@ -1246,7 +1248,7 @@ impl<R: Read> PlyReader<R> {
             {
                 return Err(self.truncated("a face"));
             }
-            let n = decode::<BIG>(&self.src.available()[before..], count_t);
+            let n = decode_scalar::<BIG>(&self.src.available()[before..], count_t);
             if !(3.0..=MAX_LIST_ITEMS as f64).contains(&n) {
                 if (0.0..3.0).contains(&n) {
                     return Err(self.too_few_corners(self.done, n as usize));
@@ -1265,7 +1267,7 @@ impl<R: Read> PlyReader<R> {
             let rec = &self.src.available()[head..head + n * isize];
             let mut bad = None;
             let mut index = |k: usize| {
-                let v = decode::<BIG>(&rec[k * isize..], item_t);
+                let v = decode_scalar::<BIG>(&rec[k * isize..], item_t);
                 if v >= 0.0 && v < nv {
                     v as u32
                 } else {
@@ -1306,11 +1308,11 @@ impl<R: Read> PlyReader<R> {
             // Monomorphised per byte order: no dispatch but the (predictable) type match.
             if big {
                 for &(off, t, slot) in wanted {
-                    vals[slot as usize] = decode::<true>(&rec[off..], t);
+                    vals[slot as usize] = decode_scalar::<true>(&rec[off..], t);
                 }
             } else {
                 for &(off, t, slot) in wanted {
-                    vals[slot as usize] = decode::<false>(&rec[off..], t);
+                    vals[slot as usize] = decode_scalar::<false>(&rec[off..], t);
                 }
             }
             self.src.consume(size);
@@ -1445,9 +1447,9 @@ impl<R: Read> PlyReader<R> {
                     for k in 0..n {
                         let b = &data[k * item.size()..];
                         let v = if big {
-                            decode::<true>(b, item)
+                            decode_scalar::<true>(b, item)
                         } else {
-                            decode::<false>(b, item)
+                            decode_scalar::<false>(b, item)
                         };
                         if v < 0.0 || v >= u32::MAX as f64 {
                             bad = Some(v);

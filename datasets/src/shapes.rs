@@ -266,6 +266,27 @@ fn point_on_rectangle(hx: f64, hy: f64, s: f64) -> (f64, f64) {
     }
 }
 
+/// An open patch: an n x n grid of quads over the unit square, each split along the same
+/// diagonal, with vertex (i, j) at `position(i / n, j / n)`. A disc with one boundary loop, for
+/// tests of open meshes (flat, or displaced as a height field).
+pub fn grid_patch(n: u32, position: impl Fn(f64, f64) -> Point3<f64>) -> Mesh {
+    let mut positions = Vec::with_capacity(((n + 1) * (n + 1)) as usize);
+    for j in 0..=n {
+        for i in 0..=n {
+            positions.push(position(i as f64 / n as f64, j as f64 / n as f64));
+        }
+    }
+    let id = |i: u32, j: u32| j * (n + 1) + i;
+    let mut faces = Vec::with_capacity((2 * n * n) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Mesh::from_triangles(positions, faces)
+}
+
 /// Appends `part` to `mesh` as a new component.
 pub fn append(mesh: &mut Mesh, part: &Mesh) {
     let base = mesh.positions.len() as u32;

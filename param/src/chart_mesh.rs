@@ -137,23 +137,10 @@ pub(crate) mod tests_support {
     use fresco_core::Mesh;
     use fresco_core::nalgebra::Point3;
 
-    /// An n x n grid of quads split into triangles, in the z = 0 plane.
+    /// An n x n grid of unit quads split into triangles, in the z = 0 plane.
     pub(crate) fn grid(n: u32) -> Mesh {
-        let mut positions = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                positions.push(Point3::new(i as f64, j as f64, 0.0));
-            }
-        }
-        let id = |i: u32, j: u32| j * (n + 1) + i;
-        let mut faces = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        Mesh::from_triangles(positions, faces)
+        let side = n as f64;
+        fresco_datasets::shapes::grid_patch(n, |u, v| Point3::new(u * side, v * side, 0.0))
     }
 }
 

@@ -5,6 +5,7 @@
 use fresco_core::nalgebra::{Point2, Point3};
 use fresco_core::{Mesh, NoProgress};
 use fresco_datasets::Shape;
+use fresco_datasets::shapes::grid_patch;
 use fresco_param::metrics::signed_area;
 use fresco_param::{UnwrapConfig, measure, unwrap};
 
@@ -119,23 +120,10 @@ fn blob() {
 /// A displaced grid: an open disc that must stay one chart if its stretch allows.
 #[test]
 fn displaced_grid_disc() {
-    let n = 24u32;
-    let mut positions = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, y) = (i as f64 / n as f64, j as f64 / n as f64);
-            positions.push(Point3::new(x, y, 0.08 * (6.0 * x).sin() * (5.0 * y).cos()));
-        }
-    }
-    let id = |i: u32, j: u32| j * (n + 1) + i;
-    let mut faces = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    let m = check(Mesh::from_triangles(positions, faces), "displaced grid");
+    let mesh = grid_patch(24, |x, y| {
+        Point3::new(x, y, 0.08 * (6.0 * x).sin() * (5.0 * y).cos())
+    });
+    let m = check(mesh, "displaced grid");
     assert_eq!(m.charts, 1, "a gently displaced disc is one chart");
 }
 

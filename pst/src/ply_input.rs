@@ -14,7 +14,9 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use fresco_core::FormatError;
-use fresco_core::ply::{PlyFormat, PlyHeader, PlyReader, PlyVertex, PropertyKind, ScalarType};
+use fresco_core::ply::{
+    PlyFormat, PlyHeader, PlyReader, PlyVertex, PropertyKind, ScalarType, decode_scalar,
+};
 
 use rayon::prelude::*;
 
@@ -56,67 +58,51 @@ fn fixed_vertices(header: &PlyHeader) -> Option<FixedVertices> {
     if header.format == PlyFormat::Ascii {
         return None;
     }
+    // Byte offset of the vertex records: every element before them has fixed-size items.
     let mut start = header.data_offset;
+    let mut vertex = None;
     for e in &header.elements {
-        let mut offsets = Vec::with_capacity(e.properties.len());
-        let mut size = 0usize;
-        for p in &e.properties {
-            let PropertyKind::Scalar(t) = p.kind else {
-                return None;
-            };
-            offsets.push((size, t));
-            size += t.size();
-        }
         if e.name == "vertex" {
-            let find = |name: &str| {
-                e.properties
-                    .iter()
-                    .position(|p| p.name == name)
-                    .map(|i| offsets[i])
-            };
-            let position = [find("x")?, find("y")?, find("z")?];
-            let normal = match (find("nx"), find("ny"), find("nz")) {
-                (Some(a), Some(b), Some(c)) => Some([a, b, c]),
-                _ => None,
-            };
-            return Some(FixedVertices {
-                start,
-                count: e.count,
-                stride: size,
-                big_endian: header.format == PlyFormat::BinaryBigEndian,
-                position,
-                normal,
-            });
+            vertex = Some(e);
+            break;
         }
-        start = start.checked_add(e.count.checked_mul(size as u64)?)?;
+        start = start.checked_add(e.count.checked_mul(e.fixed_size()? as u64)?)?;
     }
-    None
+    let vertex = vertex?;
+    let mut offsets = Vec::with_capacity(vertex.properties.len());
+    let mut stride = 0usize;
+    for p in &vertex.properties {
+        let PropertyKind::Scalar(t) = p.kind else {
+            return None;
+        };
+        offsets.push((stride, t));
+        stride += t.size();
+    }
+    let find = |name: &str| {
+        vertex
+            .properties
+            .iter()
+            .position(|p| p.name == name)
+            .map(|i| offsets[i])
+    };
+    let normal = match (find("nx"), find("ny"), find("nz")) {
+        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+        _ => None,
+    };
+    Some(FixedVertices {
+        start,
+        count: vertex.count,
+        stride,
+        big_endian: header.format == PlyFormat::BinaryBigEndian,
+        position: [find("x")?, find("y")?, find("z")?],
+        normal,
+    })
 }
 
+/// The scalar at field `(offset, type)` of one record.
 #[inline(always)]
-fn scalar<const BIG: bool>(b: &[u8], (off, ty): (usize, ScalarType)) -> f64 {
-    let b = &b[off..];
-    macro_rules! get {
-        ($t:ty, $n:expr) => {{
-            let mut a = [0u8; $n];
-            a.copy_from_slice(&b[..$n]);
-            (if BIG {
-                <$t>::from_be_bytes(a)
-            } else {
-                <$t>::from_le_bytes(a)
-            }) as f64
-        }};
-    }
-    match ty {
-        ScalarType::I8 => b[0] as i8 as f64,
-        ScalarType::U8 => b[0] as f64,
-        ScalarType::I16 => get!(i16, 2),
-        ScalarType::U16 => get!(u16, 2),
-        ScalarType::I32 => get!(i32, 4),
-        ScalarType::U32 => get!(u32, 4),
-        ScalarType::F32 => get!(f32, 4),
-        ScalarType::F64 => get!(f64, 8),
-    }
+fn scalar<const BIG: bool>(record: &[u8], (off, ty): (usize, ScalarType)) -> f64 {
+    decode_scalar::<BIG>(&record[off..], ty)
 }
 
 /// Decodes `records` (whole records of `layout`) into `out` (cleared first).

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use fresco_core::nalgebra::{Point3, Vector3};
 use fresco_core::{Mesh, Topology};
-use fresco_datasets::shapes::{blob, icosphere, torus};
+use fresco_datasets::shapes::{blob, grid_patch, icosphere, torus};
 use fresco_surface::decimate::{DecimateConfig, decimate};
 use fresco_surface::metrics::{DistanceConfig, mesh_distance};
 
@@ -79,26 +79,10 @@ fn torus_and_blob_keep_their_genus() {
 #[test]
 fn boundary_of_an_open_mesh_is_kept() {
     // A bumpy square patch: z = 0.1 sin(3x) cos(2y) over [-1,1]^2, 60x60 quads.
-    let n = 60;
-    let mut positions = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, y) = (
-                2.0 * i as f64 / n as f64 - 1.0,
-                2.0 * j as f64 / n as f64 - 1.0,
-            );
-            positions.push(Point3::new(x, y, 0.1 * (3.0 * x).sin() * (2.0 * y).cos()));
-        }
-    }
-    let id = |i: u32, j: u32| j * (n + 1) + i;
-    let mut faces = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    let mesh = Mesh::from_triangles(positions, faces);
+    let mesh = grid_patch(60, |u, v| {
+        let (x, y) = (2.0 * u - 1.0, 2.0 * v - 1.0);
+        Point3::new(x, y, 0.1 * (3.0 * x).sin() * (2.0 * y).cos())
+    });
     let out = run(&mesh, 800);
     let topo = Topology::build(&out).unwrap();
     assert_eq!(topo.boundary_loops().len(), 1);
@@ -129,22 +113,8 @@ fn boundary_of_an_open_mesh_is_kept() {
 
 #[test]
 fn flat_grid_decimates_without_error() {
-    let n = 40;
-    let mut positions = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push(Point3::new(i as f64, j as f64, 0.0));
-        }
-    }
-    let id = |i: u32, j: u32| j * (n + 1) + i;
-    let mut faces = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    let mesh = Mesh::from_triangles(positions, faces);
+    let side = 40.0;
+    let mesh = grid_patch(40, |u, v| Point3::new(side * u, side * v, 0.0));
     let (out, report) = decimate(
         &mesh,
         &DecimateConfig {
@@ -156,7 +126,7 @@ fn flat_grid_decimates_without_error() {
     assert!(report.faces_after <= 50);
     assert!(report.max_cost < 1e-9, "a plane costs nothing: {report:?}");
     assert!(out.positions.iter().all(|p| p.z.abs() < 1e-12));
-    assert!((out.surface_area() - (n * n) as f64).abs() < 1e-6);
+    assert!((out.surface_area() - side * side).abs() < 1e-6);
 }
 
 /// The size: 1.31M faces to 100k, topology kept. The time budget (under 5 s)
