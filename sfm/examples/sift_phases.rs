@@ -3,7 +3,9 @@
 //! one JSON line with the median (over N runs, default 5)
 //! seconds of every phase — decode, scale space (up-sampling + blurs), DoG + extrema,
 //! orientation, descriptor — and of the whole `extract_features` call (decode excluded), so
-//! the per-image figures of bench/sift.sh can be compared phase by phase.
+//! the per-image figures of bench/sift.sh can be compared phase by phase. `--dump <dir>` also
+//! writes each photo's features to `<dir>/<photo file name>.sift` (to check that a change keeps
+//! the keypoints and descriptors bit-identical, e.g. with `cmp`).
 
 use std::time::Instant;
 
@@ -11,6 +13,7 @@ use fresco_core::photo::load_photo;
 use fresco_sfm::descriptor::sift_descriptor;
 use fresco_sfm::dog::detect_extrema;
 use fresco_sfm::extract::{SiftConfig, extract_features};
+use fresco_sfm::feature_file::write_feature_file;
 use fresco_sfm::orientation::dominant_orientations;
 use fresco_sfm::scale_space::build_scale_space;
 use rayon::prelude::*;
@@ -24,10 +27,13 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut runs = 5;
     let mut photos = Vec::new();
+    let mut dump = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         if a == "--runs" {
             runs = it.next().and_then(|s| s.parse().ok()).unwrap_or(5);
+        } else if a == "--dump" {
+            dump = it.next().map(std::path::PathBuf::from);
         } else {
             photos.push(a.clone());
         }
@@ -42,7 +48,12 @@ fn main() {
         for run in 0..=runs {
             if run == 0 {
                 let photo = load_photo(std::path::Path::new(path)).expect("readable photo");
-                extract_features(&photo.grey, &config);
+                let f = extract_features(&photo.grey, &config);
+                if let Some(dir) = &dump {
+                    let name = std::path::Path::new(path).file_name().expect("a file name");
+                    let out = dir.join(format!("{}.sift", name.to_string_lossy()));
+                    write_feature_file(&out, &f).expect("writable dump");
+                }
                 continue;
             }
             let t0 = Instant::now();

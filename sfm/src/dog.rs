@@ -67,42 +67,28 @@ pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extrem
             continue;
         }
         // Half the final threshold: cheap pre-filter before the 26-neighbour test (as OpenCV).
-        let pre = 0.5 * config.contrast_threshold / s as f32;
+        let pre = (0.5 * config.contrast_threshold / s as f32).max(0.0);
         let starts: Vec<usize> = (b..h - b).step_by(CHUNK_ROWS).collect();
+        #[cfg(target_arch = "x86_64")]
+        let wide = std::arch::is_x86_feature_detected!("avx2");
         let mut found: Vec<((usize, usize, usize), Extremum)> = starts
             .into_par_iter()
             .flat_map_iter(|y0| {
-                let y1 = (y0 + CHUNK_ROWS).min(h - b);
-                // DoG layers 0..s+2 (dog[i] = gaussian[i + 1] - gaussian[i]) of rows y0-1..=y1.
-                let (layers, rows) = (s + 2, y1 - y0 + 2);
-                let mut dog = vec![0f32; layers * rows * w];
-                for (l, layer) in dog.chunks_exact_mut(rows * w).enumerate() {
-                    for (r, out) in layer.chunks_exact_mut(w).enumerate() {
-                        let y = y0 - 1 + r;
-                        for ((o, &hi), &lo) in out.iter_mut().zip(g[l + 1].row(y)).zip(g[l].row(y))
-                        {
-                            *o = hi - lo;
-                        }
-                    }
+                let chunk = Chunk {
+                    space,
+                    config,
+                    octave: o,
+                    y0,
+                    y1: (y0 + CHUNK_ROWS).min(h - b),
+                    border: b,
+                    pre,
+                };
+                #[cfg(target_arch = "x86_64")]
+                if wide {
+                    // SAFETY: the CPU supports AVX2 (checked above).
+                    return unsafe { scan_chunk_avx2(&chunk) };
                 }
-                let row = |l: usize, y: usize| &dog[(l * rows + y + 1 - y0) * w..][..w];
-                let mut out = Vec::new();
-                for layer in 1..=s {
-                    for y in y0..y1 {
-                        let cur = row(layer, y);
-                        let around = [layer - 1, layer, layer + 1]
-                            .map(|l| [row(l, y - 1), row(l, y), row(l, y + 1)]);
-                        for (x, &v) in cur.iter().enumerate().take(w - b).skip(b) {
-                            if v.abs() <= pre || !is_extremum(&around, x, v) {
-                                continue;
-                            }
-                            if let Some(e) = refine(g, o, layer, x, y, s, space, config) {
-                                out.push(((layer, y, x), e));
-                            }
-                        }
-                    }
-                }
-                out
+                scan_chunk(&chunk, row_candidates)
             })
             .collect();
         found.sort_by_key(|f| f.0);
@@ -111,11 +97,139 @@ pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extrem
     all
 }
 
+/// One rayon task of [`detect_extrema`]: rows `y0..y1` of an octave.
+struct Chunk<'a> {
+    space: &'a ScaleSpace,
+    config: &'a DetectorConfig,
+    octave: usize,
+    y0: usize,
+    y1: usize,
+    border: usize,
+    /// Pre-filter threshold on |DoG| (>= 0).
+    pre: f32,
+}
+
+/// The 3x3 rows around the scanned row in the DoG layers below, at and above it.
+type Around<'a> = [[&'a [f32]; 3]; 3];
+
+/// [`scan_chunk`] compiled for AVX2, with the 8-column candidate test.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn scan_chunk_avx2(chunk: &Chunk) -> Vec<((usize, usize, usize), Extremum)> {
+    scan_chunk(chunk, |around, b, w, pre, out| {
+        // SAFETY: this function only runs where AVX2 is available.
+        unsafe { row_candidates_avx2(around, b, w, pre, out) }
+    })
+}
+
+/// Computes the chunk's DoG rows (its rows plus one above and below, for every DoG layer) into
+/// a small buffer, finds the candidate columns of each row with `candidates`, and refines them
+/// in (layer, row, column) order.
+#[inline(always)]
+fn scan_chunk(
+    chunk: &Chunk,
+    candidates: impl Fn(&Around, usize, usize, f32, &mut Vec<usize>),
+) -> Vec<((usize, usize, usize), Extremum)> {
+    let space = chunk.space;
+    let s = space.config.intervals;
+    let g = &space.octaves[chunk.octave].gaussians;
+    let w = g[0].width;
+    let (y0, y1, b) = (chunk.y0, chunk.y1, chunk.border);
+    // DoG layers 0..s+2 (dog[i] = gaussian[i + 1] - gaussian[i]) of rows y0-1..=y1.
+    let (layers, rows) = (s + 2, y1 - y0 + 2);
+    let mut dog = vec![0f32; layers * rows * w];
+    for (l, layer) in dog.chunks_exact_mut(rows * w).enumerate() {
+        for (r, out) in layer.chunks_exact_mut(w).enumerate() {
+            let y = y0 - 1 + r;
+            for ((o, &hi), &lo) in out.iter_mut().zip(g[l + 1].row(y)).zip(g[l].row(y)) {
+                *o = hi - lo;
+            }
+        }
+    }
+    let row = |l: usize, y: usize| &dog[(l * rows + y + 1 - y0) * w..][..w];
+    let mut out = Vec::new();
+    let mut columns = Vec::new();
+    for layer in 1..=s {
+        for y in y0..y1 {
+            let around =
+                [layer - 1, layer, layer + 1].map(|l| [row(l, y - 1), row(l, y), row(l, y + 1)]);
+            columns.clear();
+            candidates(&around, b, w, chunk.pre, &mut columns);
+            for &x in &columns {
+                if let Some(e) = refine(g, chunk.octave, layer, x, y, s, space, chunk.config) {
+                    out.push(((layer, y, x), e));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Columns `x` in `b..w - b` of the row `around[1][1]` whose |DoG| exceeds `pre` and that are
+/// extrema of their 26 neighbours ([`is_extremum`]), in ascending order.
+fn row_candidates(around: &Around, b: usize, w: usize, pre: f32, out: &mut Vec<usize>) {
+    for (x, &v) in around[1][1].iter().enumerate().take(w - b).skip(b) {
+        if v.abs() > pre && is_extremum(around, x, v) {
+            out.push(x);
+        }
+    }
+}
+
+/// [`row_candidates`] eight columns at a time: the pre-filter on the whole group first (most
+/// groups stop there), then one max and one min over the 27 samples around each column; the
+/// same predicate as the scalar test (a positive sample is a candidate when it is >= all its
+/// neighbours, a negative one when <=), so the same columns in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn row_candidates_avx2(around: &Around, b: usize, w: usize, pre: f32, out: &mut Vec<usize>) {
+    use std::arch::x86_64::*;
+    let end = w - b;
+    let cur = around[1][1];
+    let (hi, lo) = (_mm256_set1_ps(pre), _mm256_set1_ps(-pre));
+    let mut x = b;
+    // x >= 1 and x + 8 <= end <= w - 1 keep the loads at x - 1 and x + 1 inside the rows.
+    while x + 8 <= end {
+        // SAFETY: x - 1 >= 0 and x + 1 + 8 <= w (above), every row has w samples.
+        unsafe {
+            let v = _mm256_loadu_ps(cur.as_ptr().add(x));
+            let pos = _mm256_cmp_ps::<_CMP_GT_OQ>(v, hi);
+            let neg = _mm256_cmp_ps::<_CMP_LT_OQ>(v, lo);
+            if _mm256_movemask_ps(_mm256_or_ps(pos, neg)) == 0 {
+                x += 8;
+                continue;
+            }
+            let (mut mx, mut mn) = (v, v);
+            for rows in around {
+                for r in rows {
+                    for d in [x - 1, x, x + 1] {
+                        let n = _mm256_loadu_ps(r.as_ptr().add(d));
+                        mx = _mm256_max_ps(mx, n);
+                        mn = _mm256_min_ps(mn, n);
+                    }
+                }
+            }
+            let is_max = _mm256_and_ps(pos, _mm256_cmp_ps::<_CMP_GE_OQ>(v, mx));
+            let is_min = _mm256_and_ps(neg, _mm256_cmp_ps::<_CMP_LE_OQ>(v, mn));
+            let mut bits = _mm256_movemask_ps(_mm256_or_ps(is_max, is_min)) as u32;
+            while bits != 0 {
+                out.push(x + bits.trailing_zeros() as usize);
+                bits &= bits - 1;
+            }
+        }
+        x += 8;
+    }
+    for (x, &v) in cur.iter().enumerate().take(end).skip(x) {
+        if v.abs() > pre && is_extremum(around, x, v) {
+            out.push(x);
+        }
+    }
+}
+
 /// True when `v = around[1][1][x]` is at least (positive `v`) or at most (negative `v`) each
 /// of its 26 neighbours: `around[layer][row]` are the rows above, at and below the sample in the
 /// DoG layers below, at and above it.
 #[inline]
-fn is_extremum(around: &[[&[f32]; 3]; 3], x: usize, v: f32) -> bool {
+fn is_extremum(around: &Around, x: usize, v: f32) -> bool {
     let window = |r: &[f32]| [r[x - 1], r[x], r[x + 1]];
     if v > 0.0 {
         around
@@ -267,6 +381,40 @@ mod tests {
         assert!((x - cx).abs() < 0.3 && (y - cy).abs() < 0.3, "{x} {y}");
         let sigma = best.sigma_octave * oct.step;
         assert!((sigma / t - 1.0).abs() < 0.25, "sigma {sigma}");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn wide_candidates_equal_scalar_ones() {
+        // Noise with plateaus (values quantised to 1/16, so equal neighbours occur and the >=
+        // ties matter) and a pre-filter letting most samples through: the AVX2 scan must give
+        // exactly the scalar columns, including the tail of a width that is not a multiple of 8.
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let w = 203;
+        let mut seed = 12345u32;
+        let rows: Vec<Vec<f32>> = (0..9)
+            .map(|_| {
+                (0..w)
+                    .map(|_| {
+                        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                        ((seed >> 28) as f32 - 8.0) / 16.0
+                    })
+                    .collect()
+            })
+            .collect();
+        let around: Around = std::array::from_fn(|l| std::array::from_fn(|r| &rows[3 * l + r][..]));
+        for pre in [0.0, 0.05, 0.3] {
+            for b in [1, 5] {
+                let (mut scalar, mut wide) = (Vec::new(), Vec::new());
+                row_candidates(&around, b, w, pre, &mut scalar);
+                // SAFETY: AVX2 checked above.
+                unsafe { row_candidates_avx2(&around, b, w, pre, &mut wide) };
+                assert!(!scalar.is_empty());
+                assert_eq!(scalar, wide, "pre {pre} border {b}");
+            }
+        }
     }
 
     #[test]

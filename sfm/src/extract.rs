@@ -51,10 +51,10 @@ impl Default for SiftConfig {
 /// Smallest image side (after down-scaling) that is searched; smaller images give no features.
 pub const MIN_IMAGE_SIDE: usize = 16;
 
-/// A keypoint with its float descriptor and the response it was ranked by.
+/// A keypoint with its float descriptor and the rank of its location by response (0 strongest).
 struct Detection {
     keypoint: Keypoint,
-    response: f32,
+    rank: usize,
     descriptor: [f32; 128],
 }
 
@@ -88,16 +88,29 @@ pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
         return features;
     }
     let space = build_scale_space(work, &config.scale_space);
-    let mut extrema = detect_extrema(&space, &config.detector);
+    let extrema = detect_extrema(&space, &config.detector);
     // Rank before describing: only the strongest locations need orientations and descriptors.
-    extrema.sort_by(|a, b| b.response.total_cmp(&a.response));
+    // The sort is stable (ties keep the detection order), and so is the final one below.
+    let mut ranked: Vec<usize> = (0..extrema.len()).collect();
+    ranked.sort_by(|&a, &b| extrema[b].response.total_cmp(&extrema[a].response));
     if config.max_features > 0 {
-        extrema.truncate(config.max_features);
+        ranked.truncate(config.max_features);
     }
+    // Describe in detection order (octave, layer, row, column), not rank order: consecutive
+    // windows then overlap in the cache instead of each one missing in a fresh part of a
+    // 30 MB octave image (the misses were a third of the descriptor time on a 1600 px photo).
+    let mut rank_of = vec![usize::MAX; extrema.len()];
+    for (rank, &i) in ranked.iter().enumerate() {
+        rank_of[i] = rank;
+    }
+    let kept: Vec<usize> = (0..extrema.len())
+        .filter(|&i| rank_of[i] != usize::MAX)
+        .collect();
     let ratio_scale = 0.5 * (ratio_x + ratio_y);
-    let mut detections: Vec<Detection> = extrema
+    let mut detections: Vec<Detection> = kept
         .par_iter()
-        .flat_map_iter(|e| {
+        .flat_map_iter(|&i| {
+            let e = &extrema[i];
             let octave = &space.octaves[e.octave];
             let g = &octave.gaussians[e.layer];
             let angles = if config.upright {
@@ -105,6 +118,7 @@ pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
             } else {
                 dominant_orientations(g, e.x, e.y, e.sigma_octave, &config.orientation)
             };
+            let rank = rank_of[i];
             angles.into_iter().map(move |angle| Detection {
                 keypoint: Keypoint {
                     x: (octave.step * e.x + octave.offset) * ratio_x,
@@ -112,14 +126,14 @@ pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
                     scale: e.sigma_octave * octave.step * ratio_scale,
                     orientation: angle,
                 },
-                response: e.response,
+                rank,
                 descriptor: sift_descriptor(g, e.x, e.y, e.sigma_octave, angle),
             })
         })
         .collect();
-    // Extra orientations can push the count over the limit again; the sort is stable, so the
-    // orientations of one location stay together in histogram order.
-    detections.sort_by(|a, b| b.response.total_cmp(&a.response));
+    // Back to rank order; stable, so the orientations of one location stay together in
+    // histogram order. Extra orientations can push the count over the limit again.
+    detections.sort_by_key(|d| d.rank);
     if config.max_features > 0 {
         detections.truncate(config.max_features);
     }
