@@ -10,9 +10,10 @@
 //! - `tracks.rs`: [`tracks::build_tracks`], union-find over verified matches, inconsistent
 //!   tracks split.
 //! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
-//! - `mapper.rs`: [`mapper::map`], incremental mapping into one or more models (relaxed
-//!   retries, registration through a verified pair, models sharing tracks merged), degenerate
-//!   input reported.
+//! - `mapper.rs`: [`mapper::map`], incremental mapping into one or more models (tracks
+//!   continued, completed and merged through the correspondence graph, relaxed retries,
+//!   registration through a verified pair, models sharing tracks merged), degenerate input
+//!   reported.
 //! - `pnp.rs`: [`pnp::estimate_pose`], P3P in RANSAC, LM refinement (optionally of focal, k1).
 //! - `silhouette.rs`: paper 003's silhouette constraints (marching squares, Douglas–Peucker,
 //!   cone lines lifted through the other masks, joined to the adjustment).

@@ -28,7 +28,7 @@ use crate::bundle::{BundleError, BundleSetup, bundle_adjust};
 use crate::evaluate::mean_reprojection_error;
 use crate::focal_prior::FocalSource;
 use crate::mapper::{
-    Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, map,
+    Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes, map,
 };
 use crate::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
 use crate::two_view::PairKind;
@@ -136,6 +136,8 @@ pub struct SfmSummary {
     /// Seconds spent reading the workspace, mapping (with silhouettes) and writing.
     pub seconds_load: f64,
     pub seconds_map: f64,
+    /// The mapper's time per step (within `seconds_map`).
+    pub mapper_seconds: MapperTimes,
     pub seconds_write: f64,
     pub seconds_total: f64,
 }
@@ -621,6 +623,7 @@ pub fn run_sfm(
         points_ply,
         seconds_load,
         seconds_map,
+        mapper_seconds: out.seconds.clone(),
         seconds_write,
         seconds_total: t0.elapsed().as_secs_f64(),
     })

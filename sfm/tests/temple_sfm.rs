@@ -56,17 +56,98 @@ fn temple_sparse_ring_against_ground_truth_and_colmap() {
     );
     // The issue asks for all 16, median rotation <= 0.5 deg, median centre <= 1% of the
     // diameter, each no worse than COLMAP's. Registration and the centres meet it; the
-    // rotation does not (measured 0.87 deg, COLMAP 0.86): the principal point is fixed at the
-    // image centre, 17.7 px from the true one (0.67 deg at f = 1520 px, COLMAP has the same
-    // offset), and the least-squares optimum of fresco's observations, started from the
-    // ground-truth poses with the true intrinsics fixed, is itself 0.82 deg from them
-    // (COLMAP's observations: 0.32 deg): the remaining gap is in the features and matches.
-    // Asserted: what is met, and the rotation within 1 deg (COLMAP's figure + 0.15 deg).
+    // absolute rotation bound cannot be met without the calibration, by either tool
+    // (measured 0.77 deg, COLMAP 0.86): the principal point is fixed at the image centre,
+    // 17.7 px from the true one (0.67 deg at f = 1520 px, COLMAP has the same offset). With
+    // the calibration given, see `temple_known_calibration_no_worse_than_colmap`.
+    // Asserted: what is met, rotation no worse than COLMAP's; the centre within 0.02
+    // percentage points of COLMAP's 0.168% (fresco 0.170%): the median over 16 images
+    // includes the three COLMAP does not register, the weakest-tied of the ring.
     assert_eq!(ours.registered, 16, "{ours:?}");
     assert!(ours.registered >= colmap.registered);
     assert!(ours.median_centre_frac <= 0.01, "{ours:?}");
     assert!(
-        ours.median_rotation_deg <= colmap.median_rotation_deg + 0.15,
+        ours.median_rotation_deg <= colmap.median_rotation_deg,
+        "{ours:?}"
+    );
+    assert!(
+        ours.median_centre_frac <= colmap.median_centre_frac + 0.0002,
+        "{ours:?}"
+    );
+}
+
+/// The same photos with the Middlebury calibration given (as `fresco reconstruct --focal-file
+/// K.txt --camera-model PINHOLE --single-camera` runs it: focal lengths and principal point
+/// fixed), against COLMAP given the same calibration (bench/temple_known_k.py, committed as
+/// datasets/reference/colmap/templeSparseRing_known_k: 13 of 16 registered). Both measured
+/// the same way: `evaluate_poses` against templeSR_par.txt, on every image each registered
+/// and on the images both registered (fresco's model restricted to COLMAP's images).
+#[test]
+fn temple_known_calibration_no_worse_than_colmap() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets");
+    let photos = root.join("templeSparseRing");
+    let par = photos.join("templeSR_par.txt");
+    let ws = tempfile::tempdir().unwrap();
+    // templeSR_par.txt's K (the same for all 16 photos); +0.5: its pixel centres are at
+    // integers, fresco's (COLMAP's) at half-integers, as `read_calibration_file` converts.
+    let k = [1520.4, 1525.9, 302.32 + 0.5, 246.87 + 0.5];
+    common::prepare_workspace_with_calibration(&photos, ws.path(), &SiftConfig::default(), Some(k));
+    let config = SfmConfig {
+        camera_model: fresco_core::CameraModel::Pinhole,
+        camera_mode: fresco_sfm::reconstruct::CameraMode::Single,
+        ..SfmConfig::default()
+    };
+    let summary = run_sfm(ws.path(), &config, &NoProgress).unwrap();
+    let model = read_model_or_workspace(ws.path()).unwrap();
+    let colmap_model =
+        read_model_or_workspace(&root.join("reference/colmap/templeSparseRing_known_k")).unwrap();
+    let eval = |m: &fresco_core::Reconstruction| {
+        evaluate_poses(m, &read_reference(&par, m).unwrap()).unwrap()
+    };
+    let ours = eval(&model);
+    let colmap = eval(&colmap_model);
+    let mut common_model = model.clone();
+    common_model
+        .images
+        .retain(|_, im| colmap_model.images.values().any(|c| c.name == im.name));
+    let ours_common = eval(&common_model);
+    for (what, e) in [
+        ("fresco, all registered", &ours),
+        ("fresco, images COLMAP registered", &ours_common),
+        ("COLMAP", &colmap),
+    ] {
+        println!(
+            "{what}: registered {}/16, median rotation {:.3} deg (max {:.3}), median centre {:.4}% of the scene diameter (max {:.4}%), mean reprojection {:.3} px",
+            e.registered,
+            e.median_rotation_deg,
+            e.max_rotation_deg,
+            100.0 * e.median_centre_frac,
+            100.0 * e.max_centre_frac,
+            e.mean_reprojection_px
+        );
+    }
+    println!(
+        "fresco: {} points, mean track length {:.2}",
+        summary.points, summary.mean_track_length
+    );
+    assert_eq!(ours.registered, 16, "{ours:?}");
+    assert!(ours.registered >= colmap.registered);
+    // The issue's absolute bounds, with the calibration known.
+    assert!(ours.median_rotation_deg <= 0.5, "{ours:?}");
+    assert!(ours.median_centre_frac <= 0.01, "{ours:?}");
+    // No worse than COLMAP on the images both registered.
+    assert_eq!(ours_common.registered, colmap.registered);
+    assert!(
+        ours_common.median_rotation_deg <= colmap.median_rotation_deg,
+        "{ours_common:?}"
+    );
+    assert!(
+        ours_common.median_centre_frac <= colmap.median_centre_frac,
+        "{ours_common:?}"
+    );
+    // On every image each registered: rotation no worse than COLMAP's.
+    assert!(
+        ours.median_rotation_deg <= colmap.median_rotation_deg,
         "{ours:?}"
     );
 }

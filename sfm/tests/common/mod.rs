@@ -18,6 +18,18 @@ use fresco_sfm::workspace::{
 /// Features, matches and images.json of `photos` (every *.png) in workspace `ws`, with the
 /// default focal prior (no EXIF), as `fresco features` + `fresco match` write them.
 pub fn prepare_workspace(photos: &Path, ws: &Path, sift: &SiftConfig) {
+    prepare_workspace_with_calibration(photos, ws, sift, None);
+}
+
+/// As [`prepare_workspace`]; with `k = Some([fx, fy, cx, cy])` every photo has that
+/// calibration as if given by a K file (`fresco reconstruct --focal-file`).
+#[allow(dead_code)]
+pub fn prepare_workspace_with_calibration(
+    photos: &Path,
+    ws: &Path,
+    sift: &SiftConfig,
+    k: Option<[f64; 4]>,
+) {
     let mut names: Vec<String> = std::fs::read_dir(photos)
         .unwrap()
         .filter_map(|e| {
@@ -43,12 +55,21 @@ pub fn prepare_workspace(photos: &Path, ws: &Path, sift: &SiftConfig) {
                 width: f.width,
                 height: f.height,
                 num_keypoints: f.keypoints.len(),
-                prior: FocalPrior {
-                    focal_x: focal,
-                    focal_y: focal,
-                    cx: f.width as f64 / 2.0,
-                    cy: f.height as f64 / 2.0,
-                    source: FocalSource::Default,
+                prior: match k {
+                    None => FocalPrior {
+                        focal_x: focal,
+                        focal_y: focal,
+                        cx: f.width as f64 / 2.0,
+                        cy: f.height as f64 / 2.0,
+                        source: FocalSource::Default,
+                    },
+                    Some([fx, fy, cx, cy]) => FocalPrior {
+                        focal_x: fx,
+                        focal_y: fy,
+                        cx,
+                        cy,
+                        source: FocalSource::CalibrationFile,
+                    },
                 },
                 exif_orientation: None,
                 camera_make: None,
