@@ -17,6 +17,7 @@
 #   bench/poisson.sh                                  # full: 3 runs, depths 8 and 9
 #   QUICK=1 bench/poisson.sh                          # depth 8, 1 run per cell (~5 min quiet)
 #   RUNS=5 SHAPES="sphere torus" DEPTHS=9 VARIANTS=clean bench/poisson.sh
+#   SEED=3 QUICK=1 SHAPES=torus bench/poisson.sh      # another draw of the clouds (default 7)
 #   PYTHON=/path/to/python bench/poisson.sh           # needs open3d (default /work/venv)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,6 +30,7 @@ SHAPES=${SHAPES:-"sphere torus blob"}
 DEPTHS=${DEPTHS:-"8 9"}
 VARIANTS=${VARIANTS:-"clean noisy holes"}
 POINTS=${POINTS:-200000}
+SEED=${SEED:-7}
 PYTHON=${PYTHON:-/work/venv/bin/python}
 OUT=bench/out/poisson
 mkdir -p "$OUT"
@@ -50,7 +52,7 @@ tag() { # wraps the JSON line on stdin: {"shape", "variant", "depth", "tool", "k
 }
 for shape in $SHAPES; do
     for variant in $VARIANTS; do
-        flags=$(variant_flags "$variant")
+        flags="$(variant_flags "$variant") --seed $SEED"
         cloud="$OUT/${shape}_${variant}.ply"
         gt="$OUT/${shape}_gt.ply"
         # Cloud and ground truth once per shape and variant (0 reconstructions).

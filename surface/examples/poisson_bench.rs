@@ -2,7 +2,7 @@
 //!
 //! `cargo run --release -p fresco-surface --example poisson_bench -- [shape] [points] [depth]
 //! [repeats] [--points-out cloud.ply] [--gt-out shape.ply] [--mesh-out mesh.ply]
-//! [--full-depth d] [--point-weight w] [--normal-noise s] [--holes k] [--seed n]`
+//! [--full-depth d] [--point-weight w] [--scale s] [--normal-noise s] [--holes k] [--seed n]`
 //! (defaults: sphere 200000 9 3). The cloud comes from `fresco_datasets::point_clouds`
 //! (area-uniform, exact face normals; `--normal-noise 0.005` is 0.5% normal noise,
 //! `--holes k` cuts k geodesic discs of radius 5% of the diagonal, no outliers). Prints one
@@ -30,6 +30,7 @@ fn main() {
     let gt_out = take("--gt-out");
     let full_depth: Option<u32> = take("--full-depth").map(|s| s.parse().unwrap());
     let point_weight: Option<f64> = take("--point-weight").map(|s| s.parse().unwrap());
+    let scale: Option<f64> = take("--scale").map(|s| s.parse().unwrap());
     let normal_noise: f64 = take("--normal-noise")
         .map(|s| s.parse().unwrap())
         .unwrap_or(0.0);
@@ -81,6 +82,9 @@ fn main() {
     }
     if let Some(w) = point_weight {
         cfg.point_weight = w;
+    }
+    if let Some(s) = scale {
+        cfg.scale = s;
     }
     for r in 0..repeats {
         let t = Instant::now();
