@@ -104,6 +104,17 @@ pub struct MapperConfig {
     /// A global adjustment runs when the registered images grew by this factor since the
     /// last one (COLMAP's 1.1), and always at the end.
     pub global_ba_growth: f64,
+    /// Most Levenberg–Marquardt iterations of a local adjustment. Default 25 (COLMAP's).
+    pub local_ba_max_iterations: usize,
+    /// Most iterations of a global adjustment while the model grows. Default 50 (COLMAP's);
+    /// the final one runs to `bundle.max_iterations`.
+    pub global_ba_max_iterations: usize,
+    /// Relative cost decrease that ends the local adjustments and the global ones while the
+    /// model grows. Default 1e-4: they only need the poses well inside the 4 px thresholds
+    /// of registration and triangulation, and the model's final global adjustment converges
+    /// to `bundle.function_tolerance` (1e-6). Halves the adjustment iterations with the
+    /// same final poses (templeSparseRing, sceaux_castle: within 0.01 deg).
+    pub intermediate_function_tolerance: f64,
     /// Every adjustment's settings. The loss is Cauchy with a 1 px scale (COLMAP's loss scale):
     /// observations are kept up to `filter_max_error_px` (4 px) while keypoints are located
     /// to a few tenths of a pixel, so the 1-4 px residuals are mostly wrong matches or
@@ -150,6 +161,9 @@ impl Default for MapperConfig {
             filter_min_angle_deg: 1.5,
             local_ba_images: 6,
             global_ba_growth: 1.1,
+            local_ba_max_iterations: 25,
+            global_ba_max_iterations: 50,
+            intermediate_function_tolerance: 1e-4,
             bundle: BundleConfig {
                 loss: Loss::Cauchy(1.0),
                 ..BundleConfig::default()
@@ -1111,12 +1125,21 @@ impl<'a> Builder<'a> {
         None
     }
 
-    fn global_ba(&mut self, gauge: (u32, u32)) -> Result<(), MapperError> {
+    /// A global adjustment; `fully`: to the convergence of `config.bundle` (the end of a
+    /// model, and the initial pair), otherwise as an intermediate one (see
+    /// [`MapperConfig::intermediate_function_tolerance`]).
+    fn global_ba(&mut self, gauge: (u32, u32), fully: bool) -> Result<(), MapperError> {
         let setup = BundleSetup {
             gauge: Gauge::Pair(gauge.0, gauge.1),
             ..BundleSetup::global(&self.rec)
         };
-        let summary = bundle_adjust(&mut self.rec, &setup, &bundle_config(self.config))?;
+        let mut bc = bundle_config(self.config);
+        if !fully {
+            bc.max_iterations = self.config.global_ba_max_iterations;
+            bc.function_tolerance = self.config.intermediate_function_tolerance;
+        }
+        let summary = bundle_adjust(&mut self.rec, &setup, &bc)?;
+        self.times.borrow_mut().global_iterations += summary.iterations;
         tracing::debug!(
             "global adjustment of {} images, {} points: {:?}; cameras {:?}",
             self.rec.images.len(),
@@ -1268,7 +1291,7 @@ fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(
             // Nothing registers at the normal thresholds: adjust everything, retriangulate
             // with the improved poses, and try every image again with relaxed thresholds.
             if b.rec.images.len() > last_global {
-                b.global_refinement(gauge)?;
+                b.global_refinement(gauge, false)?;
                 last_global = b.rec.images.len();
             }
             b.failed.clear();
@@ -1280,11 +1303,11 @@ fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(
         b.timed(Phase::Triangulate, |b| b.extend_and_triangulate(id));
         b.local_refinement(id)?;
         if b.rec.images.len() as f64 >= config.global_ba_growth * last_global as f64 {
-            b.global_refinement(gauge)?;
+            b.global_refinement(gauge, false)?;
             last_global = b.rec.images.len();
         }
     }
-    b.global_refinement(gauge)?;
+    b.global_refinement(gauge, true)?;
     for p in b.rec.points3d.values_mut() {
         p.track.sort_by_key(|e| (e.image_id, e.point2d_idx));
     }
@@ -1306,10 +1329,13 @@ impl Builder<'_> {
     fn local_refinement(&mut self, image_id: u32) -> Result<(), MapperError> {
         let setup = BundleSetup::local(&self.rec, image_id, self.config.local_ba_images);
         let local_images = setup.images.clone();
-        let bundle = bundle_config(self.config);
-        self.timed(Phase::LocalBundle, |b| {
+        let mut bundle = bundle_config(self.config);
+        bundle.max_iterations = self.config.local_ba_max_iterations;
+        bundle.function_tolerance = self.config.intermediate_function_tolerance;
+        let summary = self.timed(Phase::LocalBundle, |b| {
             bundle_adjust(&mut b.rec, &setup, &bundle)
         })?;
+        self.times.borrow_mut().local_iterations += summary.iterations;
         self.timed(Phase::CompleteMerge, |b| {
             b.complete_and_merge(Some(&local_images))
         });
@@ -1320,7 +1346,7 @@ impl Builder<'_> {
     /// Retriangulation, completion and merging over the whole model, then global adjustments
     /// each followed by completion, merging and filtering, until an adjustment changes few
     /// observations (COLMAP's iterative global refinement).
-    fn global_refinement(&mut self, gauge: (u32, u32)) -> Result<(), MapperError> {
+    fn global_refinement(&mut self, gauge: (u32, u32), fully: bool) -> Result<(), MapperError> {
         /// Most adjustments per refinement, and the fraction of observations whose change
         /// stops it early (COLMAP: 5 and 0.0005).
         const MAX_ROUNDS: usize = 5;
@@ -1329,7 +1355,7 @@ impl Builder<'_> {
         self.timed(Phase::CompleteMerge, |b| b.complete_and_merge(None));
         for _ in 0..MAX_ROUNDS {
             let before = self.num_observations();
-            self.timed(Phase::GlobalBundle, |b| b.global_ba(gauge))?;
+            self.timed(Phase::GlobalBundle, |b| b.global_ba(gauge, fully))?;
             let (added, merged) = self.timed(Phase::CompleteMerge, |b| b.complete_and_merge(None));
             let removed = self.timed(Phase::Filter, |b| b.filter_points(None));
             let changed = added + merged + removed;
@@ -1373,6 +1399,9 @@ pub struct MapperTimes {
     pub merge_models: f64,
     pub local_bundles: usize,
     pub global_bundles: usize,
+    /// Levenberg–Marquardt iterations summed over the local and the global adjustments.
+    pub local_iterations: usize,
+    pub global_iterations: usize,
 }
 
 impl MapperTimes {
@@ -1712,7 +1741,7 @@ fn try_initial_pair(
         return Ok(InitAttempt::SmallAngle(med));
     }
     b.config = config;
-    b.global_ba((pair.image1, pair.image2))?;
+    b.global_ba((pair.image1, pair.image2), true)?;
     b.filter_points(None);
     if b.rec.points3d.len() < config.init_min_points {
         return Ok(InitAttempt::Failed);
@@ -1841,7 +1870,7 @@ pub fn map(
                     &others,
                     rec,
                 );
-                b.global_refinement(gauge)?;
+                b.global_refinement(gauge, false)?;
                 grow(&mut b, gauge, progress)?;
                 used.extend(b.rec.images.keys().copied());
                 models[i].rec = b.rec;
