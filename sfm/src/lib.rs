@@ -34,8 +34,9 @@
 //!   [`homography::HomographyEstimator`].
 //! - `verification.rs`: [`verification::verify_pair`], COLMAP-like classification of a pair
 //!   (calibrated, uncalibrated, planar, panoramic, degenerate) with its relative pose.
-//! - `matching.rs`: [`matching::match_descriptors`] (blocked brute force, ratio and mutual tests,
-//!   rayon), [`matching::select_pairs`] (exhaustive, sequential, retrieval),
+//! - `matching.rs`: [`matching::match_descriptors`] (exact integer brute force on AVX-512 VNNI,
+//!   AVX2 or faer, [`matching::DistanceKernel`], ratio and mutual tests in one pass, rayon),
+//!   [`matching::select_pairs`] (exhaustive, sequential, retrieval),
 //!   [`matching::match_pairs`] (matching + verification of many pairs).
 //! - `view_graph.rs`: [`view_graph::ViewGraph`] (petgraph) and its connected components.
 //! - `two_view.rs`: [`two_view::TwoViewGeometry`] of a pair (kind, F, E, H, relative pose, inliers).

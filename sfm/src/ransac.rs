@@ -189,8 +189,9 @@ pub fn ransac<E: Estimator>(
         models.clear();
         estimator.fit_minimal(&sample, &mut models);
         for model in models.drain(..) {
-            let (cost, count) = score(estimator, &model, data, threshold2);
-            if count < s || best.as_ref().is_some_and(|b| cost >= b.1) {
+            let bail = best.as_ref().map_or(f64::INFINITY, |b| b.1);
+            let (cost, count) = score(estimator, &model, data, threshold2, bail);
+            if count < s || cost >= bail {
                 continue;
             }
             let (model, cost, count) = if config.local_optimisation {
@@ -221,22 +222,34 @@ pub fn ransac<E: Estimator>(
 }
 
 /// MSAC cost (sum of errors truncated at the threshold) and inlier count of `model`.
+///
+/// The scan stops early once the cost reaches `bail` (checked every `BAIL_CHECK` data): the
+/// cost only grows, so such a model cannot beat the one whose cost is `bail`, and callers
+/// reject it as they would with the full cost (the partial cost and count are returned).
+/// Most sampled models are wrong and reach the best cost after a fraction of the data.
 fn score<E: Estimator>(
     estimator: &E,
     model: &E::Model,
     data: &[E::Datum],
     threshold2: f64,
+    bail: f64,
 ) -> (f64, usize) {
+    const BAIL_CHECK: usize = 64;
     let mut cost = 0.0;
     let mut count = 0;
-    for d in data {
-        let e2 = estimator.squared_error(model, d);
-        // A NaN error (a point at infinity, a degenerate model) counts as an outlier.
-        if e2 <= threshold2 {
-            cost += e2;
-            count += 1;
-        } else {
-            cost += threshold2;
+    for chunk in data.chunks(BAIL_CHECK) {
+        for d in chunk {
+            let e2 = estimator.squared_error(model, d);
+            // A NaN error (a point at infinity, a degenerate model) counts as an outlier.
+            if e2 <= threshold2 {
+                cost += e2;
+                count += 1;
+            } else {
+                cost += threshold2;
+            }
+        }
+        if cost >= bail {
+            break;
         }
     }
     (cost, count)
@@ -270,7 +283,7 @@ fn local_optimisation<E: Estimator>(
         estimator.fit_nonminimal(&inliers, &mut refits);
         let mut improved = false;
         for candidate in refits.drain(..) {
-            let (c, k) = score(estimator, &candidate, data, threshold2);
+            let (c, k) = score(estimator, &candidate, data, threshold2, cost);
             if c < cost {
                 model = candidate;
                 cost = c;

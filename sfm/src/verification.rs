@@ -156,36 +156,67 @@ pub fn verify_pair(
     // requested confidence, a RANSAC that has not found one can stop. Weak pairs (15-40
     // matches, most of an exhaustive set) then draw hundreds of samples instead of 10000 per
     // model; pairs with more matches keep the default floor of 0.1.
+    //
+    // The same argument bounds E and H by what the classification can use (run F, then E,
+    // then H): E only counts with at least `min_e_f_inlier_ratio` x F's inliers, H only with
+    // more than `max_h_inlier_ratio` x the inliers of the model it is compared with (or
+    // `min_inliers` when F failed), so each stops once a model that could change the class
+    // would have been found at the requested confidence. Where such a model exists the run
+    // is the same as an unbounded one (the adaptive count is below the bound once it is
+    // found); where none exists (an E of an uncalibrated pair, the H of a general scene) the
+    // hopeless search ends up to 10000 samples earlier. The H matrix of a pair it does not
+    // explain is then the best found so far, which nothing uses. With K files on both sides
+    // and E not explaining the pair, the pair is degenerate whatever H says: no H is fitted.
     let default = RansacConfig::default();
-    let ransac_config = RansacConfig {
+    let n = matches.len();
+    let bounded = |wanted: usize| RansacConfig {
         max_error: config.max_error_px,
         confidence: config.confidence,
         max_iterations: config.max_iterations,
-        min_inlier_ratio: (config.min_inliers as f64 / matches.len() as f64)
+        min_inlier_ratio: (wanted.max(config.min_inliers) as f64 / n as f64)
             .clamp(default.min_inlier_ratio, 1.0),
         seed: config.seed,
-        ..default
+        ..default.clone()
     };
     let count = |r: &Option<RansacReport<Matrix3<f64>>>| r.as_ref().map_or(0, |r| r.num_inliers);
-    let f = ransac(&FundamentalEstimator::default(), &pixels, &ransac_config).ok();
-    let h = ransac(&HomographyEstimator, &pixels, &ransac_config).ok();
+    let min = config.min_inliers;
+    let f = ransac(
+        &FundamentalEstimator::default(),
+        &pixels,
+        &bounded(config.min_inliers),
+    )
+    .ok();
+    let nf = count(&f);
     let calibrated = prior1.source.is_prior() && prior2.source.is_prior();
     let trusted_k = config.trust_calibration_files
         && prior1.source == FocalSource::CalibrationFile
         && prior2.source == FocalSource::CalibrationFile;
     let focal_px = 0.25 * (prior1.focal_x + prior1.focal_y + prior2.focal_x + prior2.focal_y);
     let e = if calibrated {
+        let wanted = (config.min_e_f_inlier_ratio * nf as f64).ceil() as usize;
         ransac(
             &EssentialEstimator { focal_px },
             &normalised,
-            &ransac_config,
+            &bounded(wanted),
         )
         .ok()
     } else {
         None
     };
-    let (nf, ne, nh) = (count(&f), count(&e), count(&h));
-    let min = config.min_inliers;
+    let ne = count(&e);
+    let e_good = e.is_some() && ne >= min && ne as f64 >= config.min_e_f_inlier_ratio * nf as f64;
+    // The inlier count H must exceed to change the class, if any can.
+    let h_wanted = if e_good {
+        Some((config.max_h_inlier_ratio * ne as f64).floor() as usize + 1)
+    } else if trusted_k {
+        None
+    } else if nf >= min {
+        Some((config.max_h_inlier_ratio * nf as f64).floor() as usize + 1)
+    } else {
+        Some(min)
+    };
+    let h = h_wanted.and_then(|w| ransac(&HomographyEstimator, &pixels, &bounded(w)).ok());
+    let nh = count(&h);
     if nf < min && ne < min && nh < min {
         return degenerate(nf, ne, nh);
     }
@@ -198,9 +229,6 @@ pub fn verify_pair(
     geometry.fundamental = f.as_ref().map(|r| r.model);
     geometry.homography = h.as_ref().map(|r| r.model);
 
-    let e_good = e
-        .as_ref()
-        .is_some_and(|_| ne >= min && ne as f64 >= config.min_e_f_inlier_ratio * nf as f64);
     if let (true, Some(e)) = (e_good, e.as_ref()) {
         geometry.essential = Some(e.model);
         let e_inliers: Vec<Correspondence> = e
