@@ -73,7 +73,7 @@ pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extrem
         let wide = std::arch::is_x86_feature_detected!("avx2");
         let mut found: Vec<((usize, usize, usize), Extremum)> = starts
             .into_par_iter()
-            .flat_map_iter(|y0| {
+            .map_init(Vec::new, |dog, y0| {
                 let chunk = Chunk {
                     space,
                     config,
@@ -86,10 +86,11 @@ pub fn detect_extrema(space: &ScaleSpace, config: &DetectorConfig) -> Vec<Extrem
                 #[cfg(target_arch = "x86_64")]
                 if wide {
                     // SAFETY: the CPU supports AVX2 (checked above).
-                    return unsafe { scan_chunk_avx2(&chunk) };
+                    return unsafe { scan_chunk_avx2(&chunk, dog) };
                 }
-                scan_chunk(&chunk, row_candidates)
+                scan_chunk(&chunk, dog, row_candidates)
             })
+            .flatten_iter()
             .collect();
         found.sort_by_key(|f| f.0);
         all.extend(found.into_iter().map(|f| f.1));
@@ -115,19 +116,24 @@ type Around<'a> = [[&'a [f32]; 3]; 3];
 /// [`scan_chunk`] compiled for AVX2, with the 8-column candidate test.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn scan_chunk_avx2(chunk: &Chunk) -> Vec<((usize, usize, usize), Extremum)> {
-    scan_chunk(chunk, |around, b, w, pre, out| {
+unsafe fn scan_chunk_avx2(
+    chunk: &Chunk,
+    dog: &mut Vec<f32>,
+) -> Vec<((usize, usize, usize), Extremum)> {
+    scan_chunk(chunk, dog, |around, b, w, pre, out| {
         // SAFETY: this function only runs where AVX2 is available.
         unsafe { row_candidates_avx2(around, b, w, pre, out) }
     })
 }
 
 /// Computes the chunk's DoG rows (its rows plus one above and below, for every DoG layer) into
-/// a small buffer, finds the candidate columns of each row with `candidates`, and refines them
+/// `dog` (a per-thread buffer, reused between chunks without zeroing: every sample is written
+/// before it is read), finds the candidate columns of each row with `candidates`, and refines them
 /// in (layer, row, column) order.
 #[inline(always)]
 fn scan_chunk(
     chunk: &Chunk,
+    dog: &mut Vec<f32>,
     candidates: impl Fn(&Around, usize, usize, f32, &mut Vec<usize>),
 ) -> Vec<((usize, usize, usize), Extremum)> {
     let space = chunk.space;
@@ -137,7 +143,10 @@ fn scan_chunk(
     let (y0, y1, b) = (chunk.y0, chunk.y1, chunk.border);
     // DoG layers 0..s+2 (dog[i] = gaussian[i + 1] - gaussian[i]) of rows y0-1..=y1.
     let (layers, rows) = (s + 2, y1 - y0 + 2);
-    let mut dog = vec![0f32; layers * rows * w];
+    if dog.len() < layers * rows * w {
+        dog.resize(layers * rows * w, 0.0);
+    }
+    let dog = &mut dog[..layers * rows * w];
     for (l, layer) in dog.chunks_exact_mut(rows * w).enumerate() {
         for (r, out) in layer.chunks_exact_mut(w).enumerate() {
             let y = y0 - 1 + r;
