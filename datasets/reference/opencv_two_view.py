@@ -15,10 +15,15 @@ datasets/reference/opencv/two_view_pairs.json with, per pair:
 - the ground-truth relative pose cam2_from_cam1 from templeSR_par.txt (x_cam = R x_world + t:
   R_rel = R2 R1^T, t_rel = t2 - R_rel t1, normalised) and the rotation error of OpenCV's R.
 
-Usage: /work/venv/bin/python datasets/reference/opencv_two_view.py
+With --ring, the same for all 16 pairs of file-name neighbours 0001/0002 ... 0016/0001 (a
+wider check; some of them barely overlap, see above), written to two_view_ring.json; pairs
+where OpenCV finds no essential matrix are kept with "essential": null.
+
+Usage: /work/venv/bin/python datasets/reference/opencv_two_view.py [--ring]
 """
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -56,6 +61,9 @@ def name(i):
 
 
 def main():
+    ring = "--ring" in sys.argv[1:]
+    pairs = [(i, i % 16 + 1) for i in range(1, 17)] if ring else PAIRS
+    out = OUT.with_name("two_view_ring.json") if ring else OUT
     cv2.setRNGSeed(0)
     views = read_par(TEMPLE / "templeSR_par.txt")
     sift = cv2.SIFT_create()
@@ -69,7 +77,7 @@ def main():
         return features[i]
 
     out_pairs = []
-    for a, b in PAIRS:
+    for a, b in pairs:
         (kp1, d1), (kp2, d2) = detect(a), detect(b)
         knn = matcher.knnMatch(d1, d2, k=2)
         good = [m for m, n in (p for p in knn if len(p) == 2) if m.distance < 0.8 * n.distance]
@@ -81,15 +89,34 @@ def main():
         k2, r2, t2 = views[name(b)]
         assert np.allclose(k1, k2), "the pair's intrinsics differ"
         k = k1
+        r_gt = r2 @ r1.T
+        t_gt = t2 - r_gt @ t1
+        t_gt = t_gt / np.linalg.norm(t_gt)
+        if len(good) < 5:
+            print(f"{name(a)} {name(b)}: {len(good)} matches, no essential matrix")
+            out_pairs.append(
+                {
+                    "image1": name(a),
+                    "image2": name(b),
+                    "K": k.tolist(),
+                    "num_keypoints": [len(kp1), len(kp2)],
+                    "correspondences": [[*p, *q] for p, q in zip(pts1.tolist(), pts2.tolist())],
+                    "essential": None,
+                    "gt_cam2_from_cam1_R": r_gt.tolist(),
+                    "gt_cam2_from_cam1_t": t_gt.tolist(),
+                    "gt_rotation_angle_deg": rotation_angle_deg(r_gt),
+                }
+            )
+            continue
         t0 = time.perf_counter()
         e, emask = cv2.findEssentialMat(pts1, pts2, k, method=cv2.RANSAC, prob=0.999, threshold=1.0)
         e_seconds = time.perf_counter() - t0
         e = e[:3]  # several solutions may be stacked; OpenCV returns the best first
         _, r, t, pose_mask = cv2.recoverPose(e, pts1, pts2, k, mask=emask.copy())
         f, fmask = cv2.findFundamentalMat(pts1, pts2, cv2.FM_RANSAC, 1.0, 0.999)
-        r_gt = r2 @ r1.T
-        t_gt = t2 - r_gt @ t1
-        t_gt = t_gt / np.linalg.norm(t_gt)
+        if f is None or fmask is None:
+            f, fmask = np.zeros((3, 3)), np.zeros(len(good), dtype=np.uint8)
+        f = f[:3]
         rot_err = rotation_angle_deg(r.T @ r_gt)
         t_err = float(np.degrees(np.arccos(np.clip(float(t.ravel() @ t_gt), -1.0, 1.0))))
         pair = {
@@ -118,7 +145,7 @@ def main():
             f"OpenCV rotation error {rot_err:.3f} deg, translation error {t_err:.2f} deg"
         )
         out_pairs.append(pair)
-    OUT.parent.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     doc = {
         "opencv": cv2.__version__,
         "python": platform.python_version(),
@@ -128,10 +155,10 @@ def main():
         "pixel_convention": "OpenCV/Middlebury: centre of the top-left pixel at (0, 0)",
         "pairs": out_pairs,
     }
-    tmp = OUT.with_suffix(".json.tmp")
+    tmp = out.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(doc, separators=(",", ":")) + "\n")
-    tmp.replace(OUT)
-    print(f"wrote {OUT} ({OUT.stat().st_size} bytes)")
+    tmp.replace(out)
+    print(f"wrote {out} ({out.stat().st_size} bytes)")
 
 
 if __name__ == "__main__":

@@ -306,7 +306,7 @@ pub fn pose_from_essential(e: &Matrix3<f64>, data: &[Correspondence]) -> Option<
 
 /// Signed Sampson distance of a normalised correspondence under `E` (its square is
 /// [`crate::fundamental::sampson_error_squared`]).
-fn sampson_residual(e: &Matrix3<f64>, c: &Correspondence) -> f64 {
+pub fn sampson_residual(e: &Matrix3<f64>, c: &Correspondence) -> f64 {
     let x1 = Vector3::new(c.x1.x, c.x1.y, 1.0);
     let x2 = Vector3::new(c.x2.x, c.x2.y, 1.0);
     let ex1 = e * x1;
@@ -331,7 +331,25 @@ pub fn refine_relative_pose(
     loss_scale: f64,
     max_iterations: usize,
 ) -> Rigid3 {
-    if data.len() < 6 || loss_scale.is_nan() || loss_scale <= 0.0 {
+    refine_relative_pose_weighted(pose, data, None, loss_scale, max_iterations)
+}
+
+/// [`refine_relative_pose`] with each Sampson distance multiplied by `weights[i]` (the inverse
+/// of the correspondence's relative noise level; `None`: all 1), so that with a Gaussian noise of
+/// standard deviation proportional to `1 / weights[i]` the least-squares part is the maximum
+/// likelihood estimate. `loss_scale` applies to the weighted distances.
+pub fn refine_relative_pose_weighted(
+    pose: &Rigid3,
+    data: &[Correspondence],
+    weights: Option<&[f64]>,
+    loss_scale: f64,
+    max_iterations: usize,
+) -> Rigid3 {
+    if data.len() < 6
+        || loss_scale.is_nan()
+        || loss_scale <= 0.0
+        || weights.is_some_and(|w| w.len() != data.len())
+    {
         return *pose;
     }
     let apply = |p: &Rigid3, d: &[f64; 5]| -> Rigid3 {
@@ -351,7 +369,14 @@ pub fn refine_relative_pose(
         let r = p.rotation.to_rotation_matrix().into_inner();
         let e = p.translation.cross_matrix() * r;
         out.clear();
-        out.extend(data.iter().map(|c| sampson_residual(&e, c)));
+        match weights {
+            Some(w) => out.extend(
+                data.iter()
+                    .zip(w)
+                    .map(|(c, &wi)| wi * sampson_residual(&e, c)),
+            ),
+            None => out.extend(data.iter().map(|c| sampson_residual(&e, c))),
+        }
     };
     let mut current = Rigid3::new(pose.rotation, pose.translation.normalize());
     let mut r0 = Vec::new();
@@ -412,6 +437,63 @@ pub fn refine_relative_pose(
             lambda *= 10.0;
         }
         if !improved {
+            break;
+        }
+    }
+    current
+}
+
+/// Most rounds of [`refine_relative_pose_robust`] (scale estimate, refinement).
+const ROBUST_ROUNDS: usize = 3;
+
+/// The final refinement of a relative pose on its inliers as an M-estimator with a scale taken
+/// from the data instead of a fixed band: each round estimates the noise level of the
+/// (weighted) Sampson distances at the current pose as `1.4826 * median |w r|` (the median
+/// absolute deviation, consistent for Gaussian noise; Hampel 1974) and refines under a Cauchy
+/// loss of that scale ([`refine_relative_pose_weighted`]), until the pose stops moving or after
+/// [`ROBUST_ROUNDS`] rounds.
+///
+/// Why: the inliers of a RANSAC band of a few pixels hold matches localised to a tenth of a
+/// pixel (fine-scale keypoints) alongside ones off by one or two pixels (coarse-scale keypoints,
+/// near-misses); under a fixed 1 px Cauchy scale both count almost fully and the latter set the
+/// pose. `weights` (e.g. the inverse keypoint scale, SIFT's localisation error grows with
+/// it) make the residuals comparable before the scale is estimated.
+pub fn refine_relative_pose_robust(
+    pose: &Rigid3,
+    data: &[Correspondence],
+    weights: Option<&[f64]>,
+    max_iterations: usize,
+) -> Rigid3 {
+    let mut current = *pose;
+    let mut abs = Vec::with_capacity(data.len());
+    for _ in 0..ROBUST_ROUNDS {
+        let r = current.rotation.to_rotation_matrix().into_inner();
+        let e = current.translation.normalize().cross_matrix() * r;
+        abs.clear();
+        abs.extend(
+            data.iter()
+                .enumerate()
+                .map(|(i, c)| (sampson_residual(&e, c) * weights.map_or(1.0, |w| w[i])).abs()),
+        );
+        if abs.is_empty() {
+            break;
+        }
+        let mid = abs.len() / 2;
+        let median = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let sigma = 1.4826 * median;
+        // Exact data (sigma 0) cannot be improved; a NaN means a broken input.
+        if !(sigma.is_finite() && sigma > 0.0) {
+            break;
+        }
+        let next = refine_relative_pose_weighted(&current, data, weights, sigma, max_iterations);
+        // Stop when the round moved the pose by less than ~1e-9 rad.
+        let moved = next.rotation.angle_to(&current.rotation)
+            + next
+                .translation
+                .normalize()
+                .angle(&current.translation.normalize());
+        current = next;
+        if moved < 1e-9 {
             break;
         }
     }
@@ -533,6 +615,58 @@ mod tests {
         assert!(rotation_error_deg(&pose, &scene.cam2_from_cam1) < 1e-9);
         let t = scene.cam2_from_cam1.translation.normalize();
         assert!((pose.translation - t).norm() < 1e-9);
+    }
+
+    #[test]
+    fn robust_refinement_follows_the_well_localised_matches() {
+        // Heteroscedastic noise as SIFT gives it: a third of the matches at 0.1 px (fine
+        // scales), the rest at 1.5 px (coarse scales), all inside a 4 px RANSAC band. Started
+        // from the truth, the fixed 1 px Cauchy refinement (nearly least squares here) drifts
+        // to where the noisy majority puts the minimum; the data-scaled M-estimator, and more
+        // so with the inverse-scale weights, stays close to the truth. Averaged over 12
+        // scenes so one lucky draw cannot decide.
+        let (mut fixed, mut robust, mut weighted) = (0.0, 0.0, 0.0);
+        for seed in 0..12 {
+            let scene = Scene::new(100 + seed, 150, false);
+            let fine = scene.pixels(0.1, seed);
+            let coarse = scene.pixels(1.5, seed + 50);
+            let (pixels, scale): (Vec<Correspondence>, Vec<f64>) = (0..150)
+                .map(|i| {
+                    if i % 3 == 0 {
+                        (fine[i], 1.0)
+                    } else {
+                        (coarse[i], 15.0)
+                    }
+                })
+                .unzip();
+            let data = normalised(&scene, &pixels);
+            let w: Vec<f64> = scale.iter().map(|s| 1.0 / s).collect();
+            let truth = &scene.cam2_from_cam1;
+            let start = Rigid3::new(truth.rotation, truth.translation.normalize());
+            fixed +=
+                rotation_error_deg(&refine_relative_pose(&start, &data, 1.0 / 800.0, 50), truth);
+            robust +=
+                rotation_error_deg(&refine_relative_pose_robust(&start, &data, None, 50), truth);
+            weighted += rotation_error_deg(
+                &refine_relative_pose_robust(&start, &data, Some(&w), 50),
+                truth,
+            );
+        }
+        eprintln!(
+            "mean rotation error over 12 scenes: fixed 1 px Cauchy {:.4} deg, robust scale {:.4}, weighted {:.4}",
+            fixed / 12.0,
+            robust / 12.0,
+            weighted / 12.0
+        );
+        // The weighted estimate is the maximum likelihood one: with 50 matches at 15x lower
+        // noise its error is several times below the unweighted least squares'; 0.6 leaves
+        // margin for the draws. The unweighted robust scale (MAD of a 2:1 mixture lands
+        // between the two levels) must at least not be worse than the fixed band.
+        assert!(
+            weighted < 0.6 * fixed,
+            "weighted {weighted} vs fixed {fixed}"
+        );
+        assert!(robust <= 1.05 * fixed, "robust {robust} vs fixed {fixed}");
     }
 
     #[test]

@@ -27,7 +27,7 @@ use serde::Serialize;
 use crate::feature_file::{DESCRIPTOR_LEN, Descriptor, Features};
 use crate::focal_prior::FocalPrior;
 use crate::two_view::VerifiedPair;
-use crate::verification::{VerificationConfig, verify_pair};
+use crate::verification::{VerificationConfig, verify_pair_scaled};
 
 /// Descriptor matching settings.
 #[derive(Clone, Debug, Serialize)]
@@ -855,6 +855,17 @@ pub fn match_pairs(
                 .collect()
         })
         .collect();
+    // Keypoint scales weigh the final pose refinement (see `verify_pair_scaled`).
+    let scales: Vec<Vec<f64>> = images
+        .iter()
+        .map(|im| {
+            im.features
+                .keypoints
+                .iter()
+                .map(|k| k.scale as f64)
+                .collect()
+        })
+        .collect();
     progress.begin("matching", pairs.len() as u64);
     let mut out: Vec<VerifiedPair> = pairs
         .par_iter()
@@ -868,9 +879,10 @@ pub fn match_pairs(
             let (a, b) = (&images[i], &images[j]);
             let matches =
                 match_descriptors(&a.features.descriptors, &b.features.descriptors, matching);
-            let v = verify_pair(
+            let v = verify_pair_scaled(
                 &keypoints[i],
                 &keypoints[j],
+                Some((&scales[i], &scales[j])),
                 &matches,
                 a.prior,
                 b.prior,
