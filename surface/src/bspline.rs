@@ -1,5 +1,6 @@
 //! The function basis of the Poisson solver: degree-1 B-splines (trilinear "hats") on the
-//! dyadic lattices of the unit cube, and the quadratic B-spline used for density estimation.
+//! dyadic lattices of the unit cube, the quadratic B-spline used for density estimation and
+//! the cubic B-spline that splats the normals.
 //!
 //! Why degree 1 (the brief allows it when justified): it is PoissonRecon's own default FEM
 //! degree (`--degree 1`, also what Open3D runs); hats interpolate, so the solution's value at a
@@ -137,6 +138,20 @@ pub fn quadratic(u: f64) -> [f64; 3] {
     ]
 }
 
+/// Cubic B-spline weights of the four lattice vertices `c - 1 ..= c + 2` around a point at
+/// fraction `t` in `[0, 1]` of the cell `[c, c + 1]` (a partition of unity, C2 in `t`, and
+/// its first moments `sum_j w_j (j - t)^k` for k = 1, 2, 3 do not depend on `t`).
+#[inline]
+pub fn cubic(t: f64) -> [f64; 4] {
+    let q = 1.0 - t;
+    [
+        q * q * q / 6.0,
+        (3.0 * t * t * t - 6.0 * t * t + 4.0) / 6.0,
+        (3.0 * q * q * q - 6.0 * q * q + 4.0) / 6.0,
+        t * t * t / 6.0,
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,6 +212,24 @@ mod tests {
         assert_eq!(prolongation_weight(4, 0), 1.0);
         let w = quadratic(0.2);
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        // Cubic: partition of unity, centred, moments 2 and 3 independent of the position,
+        // continuous at the cell's ends (t = 1 in cell c is t = 0 in cell c + 1).
+        let moments = |t: f64| {
+            let w = cubic(t);
+            let m = |k: i32| -> f64 { (0..4).map(|j| w[j] * (j as f64 - 1.0 - t).powi(k)).sum() };
+            [m(0), m(1), m(2), m(3)]
+        };
+        let m0 = moments(0.0);
+        for t in [0.1, 0.37, 0.5, 0.93] {
+            let m = moments(t);
+            for k in 0..4 {
+                assert!((m[k] - m0[k]).abs() < 1e-12, "moment {k} at {t}");
+            }
+        }
+        assert!((m0[0] - 1.0).abs() < 1e-12 && m0[1].abs() < 1e-12);
+        let (a, b) = (cubic(1.0), cubic(0.0));
+        assert!((a[1] - b[0]).abs() < 1e-12 && (a[2] - b[1]).abs() < 1e-12);
+        assert!((a[3] - b[2]).abs() < 1e-12 && a[0].abs() < 1e-12 && b[3].abs() < 1e-12);
         let t = trilinear([0.3, 0.6, 0.1]);
         assert!((t.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     }

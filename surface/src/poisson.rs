@@ -7,7 +7,7 @@
 //! ```
 //!
 //! over the unit cube the samples are scaled into, where `V = sum_p A_p n_p K_p` is the
-//! normal field splatted with a unit-integral kernel (quadratic B-spline weights on the 27
+//! normal field splatted with a unit-integral kernel (cubic B-spline weights on the 64
 //! lattice vertices around the sample, at a level set by the local sampling density; so
 //! `int V = sum_p A_p n_p`, the integral of the normal over the surface) and `A_p` is the
 //! surface area a sample stands for (`1 / sampling density`, estimated below). Weighting by
@@ -166,7 +166,7 @@ pub enum PoissonError {
 /// node widths wide at that depth): with the degree-1 basis the normal field at the density
 /// depth itself stays grainy, and a wider kernel blurs the shape. The offset is relative to
 /// the sampling density, so it does not depend on the cloud's size or scale. Measured on a
-/// 200k-sample sphere at depth 8 with the 27-vertex quadratic splat: radial error std
+/// 200k-sample sphere at depth 8 with a 27-vertex quadratic splat: radial error std
 /// 1.16e-4 at offset 0, 8.5e-5 at 0.5, 7.05e-5 at 1 (Open3D: 6.6e-5). Then on the three
 /// bench shapes (sphere / blob / torus, clean clouds, Chamfer % of the diagonal): offset 1
 /// 0.00124 / 0.00122 / 0.00154, 1.25 0.00120 / 0.00114 / 0.00151, 1.5 0.00143 / 0.00127 /
@@ -692,14 +692,24 @@ pub fn reconstruct(
     // sparse samples at the finest depth would make V a field of isolated spikes and the
     // surface bumpy (measured: 2.5x the Chamfer error of splatting at the density depth).
     // V_l's coefficients in level l's hats: sum_p omega_{p,l} A_p n_p w_c(p) / h_l^3 with
-    // w_c(p) the quadratic B-spline weights of the 27 lattice vertices around p (centred
-    // on the vertex nearest p; a partition of unity, so int V = sum_p A_p n_p). The
-    // trilinear weights of p's own cell (8 vertices) made a kernel whose shape depends on
-    // where p falls in its cell; the quadratic weights are C1 in p and spread it over
-    // 3 cells: on the depth-8 sphere, torus and blob (200k samples) the Chamfer distance
-    // fell from 0.0021-0.0025% to 0.0015-0.0018% of the diagonal.
+    // w_c(p) the cubic B-spline weights of the 4^3 lattice vertices around p (the corners
+    // of p's cell and their one-ring; a partition of unity, so int V = sum_p A_p n_p).
+    // The trilinear weights of p's own cell (8 vertices) made a kernel whose shape depends
+    // on where p falls in its cell; quadratic weights on the 27 vertices around the nearest
+    // one (C1 in p) took the depth-8 sphere, torus and blob (200k samples) from
+    // 0.0021-0.0025% to 0.0015-0.0018% of the diagonal; cubic weights (C2 in p, the first
+    // three moments of the kernel independent of p's place in its cell) from
+    // 0.00121 / 0.00154 / 0.00114% to 0.00098 / 0.00125 / 0.00088% (sphere / torus / blob,
+    // offset 1.25). The quadratic splat left an imprint of the lattice on surfaces
+    // parallel to lattice planes (the torus's top and bottom: a level-set offset
+    // oscillating by +-5e-5 with the surface's height in the cell, h = 8.6e-3). The cubic
+    // weights reach the same vertices as before (p's cell's corners and their one-ring, the
+    // band's active set), so V's divergence still fits the band's ghost layer.
     let finest = &levels[depth as usize];
     let ring = octree::ring27();
+    let splat_offsets: Vec<[i32; 3]> = (0..64)
+        .map(|k| [(k & 3) - 1, ((k >> 2) & 3) - 1, (k >> 4) - 1])
+        .collect();
     let corners = octree::corners8();
     let splat_depth: Vec<f64> = density_depth
         .par_iter()
@@ -729,14 +739,16 @@ pub fn reconstruct(
             }
             let mut v = vec![[0.0f64; 3]; level.len()];
             let n = level.n();
-            let near = |u: [f64; 3]| -> ([i64; 3], [[f64; 3]; 3]) {
+            // w_c(p): cubic B-spline weights of the 4 lattice vertices floor(x) - 1 ..=
+            // floor(x) + 2 per axis.
+            let near = |u: [f64; 3]| -> ([i64; 3], [[f64; 4]; 3]) {
                 let mut c = [0i64; 3];
-                let mut w = [[0.0; 3]; 3];
+                let mut w = [[0.0; 4]; 3];
                 for a in 0..3 {
                     let x = u[a] * n as f64;
-                    let r = (x.round() as i64).clamp(0, n);
+                    let r = (x.floor() as i64).clamp(0, n - 1);
                     c[a] = r;
-                    w[a] = bspline::quadratic((x - r as f64).clamp(-0.5, 0.5));
+                    w[a] = bspline::cubic((x - r as f64).clamp(0.0, 1.0));
                 }
                 (c, w)
             };
@@ -745,13 +757,13 @@ pub fn reconstruct(
                 .map(|&s| octree::pack(near(samples[s]).0))
                 .collect();
             let verts = SortedKeys::from_unsorted(keys.clone());
-            let table = level.lookup_from(&verts, Map::Same, &ring);
+            let table = level.lookup_from(&verts, Map::Same, &splat_offsets);
             for (i, &s) in used.iter().enumerate() {
                 let f = splat_weight(s, l) * area[s] / (h * h * h);
                 let (_, w) = near(samples[s]);
                 let vi = verts.find(keys[i]).expect("indexed");
-                for (o, off) in ring.iter().enumerate() {
-                    let j = table[vi * 27 + o];
+                for (o, off) in splat_offsets.iter().enumerate() {
+                    let j = table[vi * 64 + o];
                     let wk = w[0][(off[0] + 1) as usize]
                         * w[1][(off[1] + 1) as usize]
                         * w[2][(off[2] + 1) as usize];
@@ -808,7 +820,7 @@ pub fn reconstruct(
     for l in (1..=depth as usize).rev() {
         let level = &levels[l];
         let mut acc = finer_part[l].clone();
-        // With the 27-vertex splat V_l reaches the band's edge, so its divergence also has
+        // With the 64-vertex splat V_l reaches the band's edge, so its divergence also has
         // rows on the ghost vertices: those feed the coarser levels through the restriction.
         acc.resize(level.len(), 0.0);
         if !vcoef[l].is_empty() && !level.ghost.is_empty() {
