@@ -8,6 +8,11 @@
 //!   both detectors see the same pixels; fresco's repeatability and matching precision at 1.5 px
 //!   (definitions in the script's docstring, reimplemented below) are compared with OpenCV's
 //!   committed figures.
+//! * `localisation_per_octave_at_least_opencvs`: the same images under four warps with
+//!   sub-pixel translations (shift, scale 0.7 and 1.4, rotation 17 deg; reference from
+//!   datasets/reference/opencv_localisation.py, definitions in its docstring): per octave, the
+//!   median position error of repeated keypoints matched through the known homography is at
+//!   most OpenCV's (+10%), with no systematic offset of fresco's own.
 //!
 //! Coordinates: OpenCV puts pixel centres at integers, fresco's feature files at half-integers
 //! (COLMAP), so fresco positions are shifted by -0.5 here. (OpenCV also reports positions from
@@ -340,4 +345,169 @@ fn keypoints_agree_with_opencv() {
             "{name}: count ratio {ratio:.2}"
         );
     }
+}
+
+#[derive(Deserialize)]
+struct LocalisationRecord {
+    images: Vec<LocalisationImage>,
+    pooled: Vec<OctaveStats>,
+}
+
+#[derive(Deserialize)]
+struct LocalisationImage {
+    path: String,
+    crop: Option<[usize; 4]>,
+    warps: Vec<LocalisationWarp>,
+}
+
+#[derive(Deserialize)]
+struct LocalisationWarp {
+    homography: [[f64; 3]; 3],
+    width: usize,
+    height: usize,
+}
+
+#[derive(Deserialize)]
+struct OctaveStats {
+    octave: usize,
+    repeats: usize,
+    median_error_px: Option<f64>,
+    mean_dx_px: Option<f64>,
+    mean_dy_px: Option<f64>,
+}
+
+/// `(octave, error, dx, dy)` of each visible source keypoint with a repeat, the definitions of
+/// datasets/reference/opencv_localisation.py: nearest warped keypoint of a consistent scale
+/// (factor 1.3 of sigma times the warp's scale) within max(1.5, 0.75 sigma) source pixels,
+/// errors measured after mapping it back by H⁻¹.
+fn localisation_errors(
+    k1: &[(f64, f64)],
+    s1: &[f64],
+    k2: &[(f64, f64)],
+    s2: &[f64],
+    hom: &[[f64; 3]; 3],
+    size1: (usize, usize),
+    size2: (usize, usize),
+) -> Vec<(usize, f64, f64, f64)> {
+    let hinv = invert(hom);
+    let sh = (hom[0][0] * hom[1][1] - hom[0][1] * hom[1][0]).abs().sqrt();
+    let back: Vec<(f64, f64)> = k2.iter().map(|p| apply(&hinv, p.0, p.1)).collect();
+    let mut out = Vec::new();
+    for (i, &p) in k1.iter().enumerate() {
+        if !visible(p, hom, size1, size2) {
+            continue;
+        }
+        let mut best: Option<(f64, f64, f64)> = None;
+        for (q, &sq) in back.iter().zip(s2) {
+            let ratio = sq / (s1[i] * sh);
+            if !(1.0 / 1.3..=1.3).contains(&ratio) {
+                continue;
+            }
+            let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+            let d = dx.hypot(dy);
+            if best.is_none_or(|b| d < b.0) {
+                best = Some((d, dx, dy));
+            }
+        }
+        let Some((d, dx, dy)) = best else { continue };
+        if d > (0.75 * s1[i]).max(1.5) {
+            continue;
+        }
+        let octave = (s1[i] / 0.8).log2().floor().clamp(0.0, 4.0) as usize;
+        out.push((octave, d, dx, dy));
+    }
+    out
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+#[test]
+fn localisation_per_octave_at_least_opencvs() {
+    let text =
+        std::fs::read_to_string(root().join("datasets/reference/opencv/sift_localisation.json"))
+            .expect("reference file");
+    let record: LocalisationRecord = serde_json::from_str(&text).expect("reference json");
+    let mut rows = Vec::new();
+    for image in &record.images {
+        let (g, w, h) = grey_u8(&root().join(&image.path), image.crop);
+        let (k1, f1) = detect(&g, w, h);
+        let s1: Vec<f64> = f1.keypoints.iter().map(|k| k.scale as f64).collect();
+        for warp in &image.warps {
+            let img = warp_bilinear(&g, w, h, &warp.homography, warp.width, warp.height);
+            let (k2, f2) = detect(&img, warp.width, warp.height);
+            let s2: Vec<f64> = f2.keypoints.iter().map(|k| k.scale as f64).collect();
+            rows.extend(localisation_errors(
+                &k1,
+                &s1,
+                &k2,
+                &s2,
+                &warp.homography,
+                (w, h),
+                (warp.width, warp.height),
+            ));
+        }
+    }
+    for cv in &record.pooled {
+        let mut e: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.0 == cv.octave)
+            .map(|r| r.1)
+            .collect();
+        let n = e.len();
+        let bias = |k: usize| {
+            rows.iter()
+                .filter(|r| r.0 == cv.octave)
+                .map(|r| if k == 0 { r.2 } else { r.3 })
+                .sum::<f64>()
+                / n.max(1) as f64
+        };
+        let (bx, by) = (bias(0), bias(1));
+        let ours = if n > 0 { median(&mut e) } else { f64::NAN };
+        let theirs = cv.median_error_px.unwrap_or(f64::NAN);
+        println!(
+            "octave {}: fresco {n} repeats, median error {ours:.3} px, mean error ({bx:+.3}, \
+             {by:+.3}); OpenCV {} repeats, median {theirs:.3} px",
+            cv.octave, cv.repeats
+        );
+        // Octaves with at least 300 repeats on both sides (0-3 here): the median of n
+        // errors with this spread has a relative standard error of about 1.25 / sqrt(n), under
+        // 7% at n = 300; fresco must be within 10% of OpenCV's median (the coarsest octave,
+        // ~200 repeats of a few large blobs, is printed only).
+        if n >= 300 && cv.repeats >= 300 {
+            assert!(
+                ours <= 1.1 * theirs,
+                "octave {}: fresco median error {ours:.3} px, OpenCV {theirs:.3} px",
+                cv.octave
+            );
+            // No systematic offset of fresco's own: a half-pixel convention slip between
+            // octaves shows as a mean error of 0.25-0.5 px. Measured: under 0.04 px in octaves
+            // 0-2; octave 3 has (+0.10, -0.03) px and OpenCV (+0.12, -0.03), an offset both
+            // detectors share, so it comes from the images (a few hundred coarse blobs), not
+            // from a convention: fresco's may exceed 0.1 px only as far as OpenCV's does, plus
+            // 0.03 px (twice the standard error of a mean of 500 errors of ~0.3 px).
+            let cv_bias = cv
+                .mean_dx_px
+                .unwrap_or(0.0)
+                .hypot(cv.mean_dy_px.unwrap_or(0.0));
+            assert!(
+                bx.hypot(by) < cv_bias.max(0.07) + 0.03,
+                "octave {}: bias ({bx}, {by}), OpenCV's {cv_bias}",
+                cv.octave
+            );
+        }
+    }
+    let mut all: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    let ours = median(&mut all);
+    println!(
+        "all octaves: fresco {} repeats, median error {ours:.3} px",
+        all.len()
+    );
 }
