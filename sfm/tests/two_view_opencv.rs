@@ -226,10 +226,10 @@ fn verification_rotation_against_ground_truth_and_opencv() {
         // refinement of the pose under a Cauchy loss at the residuals' own noise level; no
         // keypoint scales here, the reference holds positions only) against OpenCV's
         // findEssentialMat + recoverPose:
-        // no worse than OpenCV plus 0.25 deg on every pair (the conditioning argument of the
-        // test above), and at least as good on average.
+        // at least as close as OpenCV on every pair (smallest margin measured: 0.40 deg on
+        // 0006/0007), and on average.
         assert!(
-            err <= p.opencv_rotation_error_deg + 0.25,
+            err <= p.opencv_rotation_error_deg,
             "{}: fresco {err} deg, OpenCV {} deg",
             p.name,
             p.opencv_rotation_error_deg
