@@ -2,7 +2,8 @@
 //! [--runs N]`. After one untimed warm-up run (thread pool, page faults), for each photo prints
 //! one JSON line with the median (over N runs, default 5)
 //! seconds of every phase — decode, scale space (up-sampling + blurs), DoG + extrema,
-//! orientation, descriptor — and of the whole `extract_features` call (decode excluded), so
+//! orientation, descriptor — and of the whole `extract_features` call (decode excluded), of the
+//! up-sampling alone and of writing the feature file, so
 //! the per-image figures of bench/sift.sh can be compared phase by phase. `--dump <dir>` also
 //! writes each photo's features to `<dir>/<photo file name>.sift` (to check that a change keeps
 //! the keypoints and descriptors bit-identical, e.g. with `cmp`).
@@ -15,7 +16,7 @@ use fresco_sfm::dog::detect_extrema;
 use fresco_sfm::extract::{SiftConfig, extract_features};
 use fresco_sfm::feature_file::write_feature_file;
 use fresco_sfm::orientation::dominant_orientations;
-use fresco_sfm::scale_space::build_scale_space;
+use fresco_sfm::scale_space::{build_scale_space, upsample2};
 use rayon::prelude::*;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -43,7 +44,7 @@ fn main() {
         ..Default::default()
     };
     for path in &photos {
-        let mut t = vec![Vec::new(); 6];
+        let mut t = vec![Vec::new(); 8];
         let mut count = 0;
         for run in 0..=runs {
             if run == 0 {
@@ -94,18 +95,32 @@ fn main() {
             let f = extract_features(&grey, &config);
             t[5].push(t5.elapsed().as_secs_f64());
             assert_eq!(f.len(), count);
+            // Up-sampling alone (part of scale_space; the rest of it is blurring and decimation).
+            let t6 = Instant::now();
+            let up = upsample2(&grey);
+            t[6].push(t6.elapsed().as_secs_f64());
+            drop(up);
+            // Writing the feature file (what `fresco features` does after extracting).
+            let tmp = std::env::temp_dir().join(format!("sift_phases_{}.sift", std::process::id()));
+            let t7 = Instant::now();
+            write_feature_file(&tmp, &f).expect("writable temporary file");
+            t[7].push(t7.elapsed().as_secs_f64());
+            std::fs::remove_file(&tmp).ok();
         }
         let m: Vec<f64> = t.into_iter().map(median).collect();
         println!(
             "{{\"photo\": \"{path}\", \"keypoints\": {count}, \"runs\": {runs}, \"decode\": {:.4}, \
              \"scale_space\": {:.4}, \"dog_extrema\": {:.4}, \"orientation\": {:.4}, \
-             \"descriptor\": {:.4}, \"extract_features\": {:.4}, \"threads\": {}}}",
+             \"descriptor\": {:.4}, \"extract_features\": {:.4}, \"upsample\": {:.4}, \
+             \"write\": {:.4}, \"threads\": {}}}",
             m[0],
             m[1],
             m[2],
             m[3],
             m[4],
             m[5],
+            m[6],
+            m[7],
             rayon::current_num_threads()
         );
     }
