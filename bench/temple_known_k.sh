@@ -11,6 +11,7 @@ rm -rf "$OUT" && mkdir -p "$OUT"
 cargo build --release -p fresco
 printf "1520.4 0 302.32\n0 1525.9 246.87\n0 0 1\n" > "$OUT/K.txt"
 PAR=datasets/templeSparseRing/templeSR_par.txt
+echo "start: $(date -u "+%Y-%m-%d %H:%M UTC"), load average: $(cut -d" " -f1-3 /proc/loadavg)"
 target/release/fresco -q reconstruct datasets/templeSparseRing --focal-file "$OUT/K.txt" \
     --camera-model PINHOLE --single-camera -o "$OUT/fresco"
 echo "fresco, known K:"
@@ -18,3 +19,6 @@ target/release/fresco eval poses "$OUT/fresco/sparse/0" --gt "$PAR"
 "$PYTHON" bench/temple_known_k.py datasets/templeSparseRing "$OUT/colmap" 2>/dev/null
 echo "COLMAP, known K:"
 target/release/fresco eval poses "$OUT/colmap" --gt "$PAR"
+"$PYTHON" bench/temple_known_k_common.py "$OUT/fresco/sparse/0" "$OUT/colmap" "$OUT/fresco_common"
+echo "fresco, known K, on the images COLMAP registered:"
+target/release/fresco eval poses "$OUT/fresco_common" --gt "$PAR"
