@@ -8,6 +8,7 @@
 #    then one timed detect+describe; 5 processes per tool, interleaved (fresco, OpenCV, ...),
 #    medians. fresco: sfm/examples/sift_phases.rs (extract_features, plus its phases);
 #    OpenCV: bench/sift_opencv.py --image.
+#    The same on one thread each (less sensitive to other processes' load).
 # 2. Per set: `fresco features` vs bench/sift_opencv.py over the 16 temple and 11 sceaux photos
 #    (times measured inside each tool, photo decoding included, fresco's also writing the
 #    feature files), interleaved, medians of RUNS (default 3).
@@ -52,6 +53,20 @@ for img in datasets/templeSparseRing/templeSR0001.png datasets/sceaux_castle/ima
   size=$("$PYTHON" -c "import cv2,sys; h,w=cv2.imread(sys.argv[1]).shape[:2]; print(f'{w}x{h}')" "$img")
   phases=$("$PYTHON" -c "import json,sys; d=json.load(open(sys.argv[1])); print(', '.join('%.3f' % d[k] for k in ('scale_space','dog_extrema','orientation','descriptor')))" "$OUT/img.fresco.json")
   printf "| %s | %s | %s | %s | %.3f | %.3f | %.2fx | %s |\n" "$(basename "$img")" "$size" "$fk" "$ok" "$fs" "$os" "$(echo "$fs / $os" | bc -l)" "$phases"
+done
+echo
+echo "Per image on one thread each (RAYON_NUM_THREADS=1, cv2.setNumThreads(1)): less sensitive to other load"
+echo
+echo "| image | fresco s | OpenCV $CV s | fresco / OpenCV |"
+echo "|---|---|---|---|"
+for img in datasets/templeSparseRing/templeSR0001.png datasets/sceaux_castle/images/100_7100.JPG; do
+  : > "$OUT/img1.fresco"; : > "$OUT/img1.opencv"
+  for i in $(seq "$PER_IMAGE_RUNS"); do
+    RAYON_NUM_THREADS=1 "$PHASES" "$img" --runs 1 | field extract_features >> "$OUT/img1.fresco"
+    "$PYTHON" bench/sift_opencv.py --image "$img" 1 | field seconds >> "$OUT/img1.opencv"
+  done
+  fs=$(median < "$OUT/img1.fresco"); os=$(median < "$OUT/img1.opencv")
+  printf "| %s | %.3f | %.3f | %.2fx |\n" "$(basename "$img")" "$fs" "$os" "$(echo "$fs / $os" | bc -l)"
 done
 echo
 echo "Per set: whole folders, median of $RUNS interleaved runs (decode included)"

@@ -4,7 +4,7 @@ Each photo is read (cv2.imread, colour), converted to grey (Rec. 601, as fresco)
 cv2.SIFT_create().detectAndCompute with OpenCV's default thread settings; the time covers
 reading, conversion and detection+description of every photo, as fresco's summary does.
 
-`sift_opencv.py --image <photo>`: one photo, decoding and grey conversion untimed, one untimed
+`sift_opencv.py --image <photo> [threads]`: one photo, decoding and grey conversion untimed, one untimed
 warm-up call, then one timed detectAndCompute; prints JSON {keypoints, seconds}.
 """
 import json
@@ -15,6 +15,8 @@ import time
 import cv2
 
 if sys.argv[1] == "--image":
+    if len(sys.argv) > 3:  # optional thread count (bench/sift.sh's one-thread table)
+        cv2.setNumThreads(int(sys.argv[3]))
     grey = cv2.cvtColor(cv2.imread(sys.argv[2], cv2.IMREAD_COLOR), cv2.COLOR_BGR2GRAY)
     sift = cv2.SIFT_create()
     sift.detectAndCompute(grey, None)
