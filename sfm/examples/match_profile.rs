@@ -1,8 +1,9 @@
 //! Where `fresco match` spends its time: `cargo run --release -p fresco-sfm --example
 //! match_profile -- <ws> [threads]`. Reads the workspace's feature files (timed), then matches
 //! every pair like `fresco match` (exhaustive, ratio 0.8, mutual check) and runs the F, H and
-//! E RANSACs of verification separately with the settings `verify_pair` uses, timing each,
-//! and finally `verify_pair` itself. Pairs run one after the other (matching itself uses
+//! E RANSACs of verification separately with the `min_inliers` bound `verify_pair` uses for
+//! F and E (H is bounded further inside `verify_pair`), timing each, and finally
+//! `verify_pair` itself. Pairs run one after the other (matching itself uses
 //! `threads` rayon threads, default all), so each phase's seconds are its share of the stage.
 //! Prints one JSON line of totals and per-phase sample counts.
 
