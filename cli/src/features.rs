@@ -39,6 +39,10 @@ pub struct FeaturesArgs {
     /// Do not up-sample photos 2x before the first octave (faster, fewer small features).
     #[arg(long)]
     pub no_upsample: bool,
+    /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in
+    /// [0, 1] (OpenCV's contrastThreshold; COLMAP's peak_threshold times 3).
+    #[arg(long, default_value_t = fresco_sfm::dog::DetectorConfig::default().contrast_threshold)]
+    pub contrast_threshold: f32,
     /// Camera model the mapper should use (COLMAP name, e.g. SIMPLE_RADIAL, PINHOLE, OPENCV);
     /// recorded in <ws>/features.json.
     #[arg(long, default_value = "SIMPLE_RADIAL")]
@@ -67,6 +71,7 @@ struct RunRecord<'a> {
     upright: bool,
     root_sift: bool,
     upsample: bool,
+    contrast_threshold: f32,
     focal_file: Option<&'a Path>,
 }
 
@@ -117,6 +122,13 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
         ..Default::default()
     };
     config.scale_space.upsample = !args.no_upsample;
+    if !(args.contrast_threshold >= 0.0 && args.contrast_threshold.is_finite()) {
+        bail!(
+            "--contrast-threshold must be a non-negative number, got {}",
+            args.contrast_threshold
+        );
+    }
+    config.detector.contrast_threshold = args.contrast_threshold;
 
     let bars = crate::progress::Bars::new(ctx);
     bars.begin("features", photos.len() as u64);
@@ -171,6 +183,7 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
         upright: args.upright,
         root_sift: args.rootsift,
         upsample: !args.no_upsample,
+        contrast_threshold: args.contrast_threshold,
         focal_file: args.focal_file.as_deref(),
     };
     let record_path = args.output.join("features.json");

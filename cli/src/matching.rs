@@ -31,6 +31,10 @@ pub struct MatchArgs {
     /// Keep matches that are not mutual nearest neighbours.
     #[arg(long)]
     pub no_mutual: bool,
+    /// Match each verified pair again near its epipolar lines and verify those matches
+    /// (guided matching: more matches on ordinary scenes, wrong ones on repeated structure).
+    #[arg(long)]
+    pub guided: bool,
     /// RANSAC threshold in pixels (Sampson error for F and E, transfer error for H).
     #[arg(long, default_value_t = 4.0)]
     pub max_error: f64,
@@ -90,6 +94,7 @@ pub fn run(args: MatchArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     let matching = MatchingConfig {
         ratio: args.ratio,
         mutual: !args.no_mutual,
+        guided: args.guided,
     };
     let verification = VerificationConfig {
         max_error_px: args.max_error,

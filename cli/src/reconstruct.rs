@@ -28,6 +28,9 @@ pub struct ReconstructArgs {
     /// Folder of object masks for silhouette constraints (see `fresco sfm --masks`).
     #[arg(long)]
     pub masks: Option<PathBuf>,
+    /// Refine the principal point of uncalibrated cameras (see `fresco sfm`).
+    #[arg(long)]
+    pub refine_principal_point: bool,
 }
 
 pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -41,6 +44,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             upright: false,
             rootsift: false,
             no_upsample: false,
+            contrast_threshold: fresco_sfm::dog::DetectorConfig::default().contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),
         },
@@ -54,6 +58,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             retrieval: None,
             ratio: 0.8,
             no_mutual: false,
+            guided: false,
             max_error: 4.0,
             min_inliers: 15,
         },
@@ -68,6 +73,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             single_camera: args.single_camera,
             per_image_camera: false,
             init_min_inliers: 100,
+            refine_principal_point: args.refine_principal_point,
         },
         ctx,
     )?;

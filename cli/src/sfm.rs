@@ -29,6 +29,11 @@ pub struct SfmArgs {
     /// Fewest verified inliers of the initial pair.
     #[arg(long, default_value_t = 100)]
     pub init_min_inliers: usize,
+    /// Refine the principal point of uncalibrated cameras in bundle adjustment (COLMAP's
+    /// `ba_refine_principal_point`). Off by default: only views converging on an object from
+    /// several sides determine it, and even then the estimate absorbs unmodelled lens effects.
+    #[arg(long)]
+    pub refine_principal_point: bool,
 }
 
 pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -52,6 +57,7 @@ pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
         ..Default::default()
     };
     config.mapper.init_min_inliers = args.init_min_inliers;
+    config.mapper.bundle.refine_principal_point = args.refine_principal_point;
     let bars = crate::progress::Bars::new(ctx);
     let summary = run_sfm(&args.workspace, &config, &bars)
         .with_context(|| format!("sfm on {}", args.workspace.display()))?;

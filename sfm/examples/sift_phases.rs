@@ -39,8 +39,10 @@ fn main() {
             photos.push(a.clone());
         }
     }
+    // OpenCV's defaults (bench/sift.sh compares with cv2.SIFT_create()).
     let config = SiftConfig {
         max_features: 0,
+        detector: fresco_sfm::dog::DetectorConfig::opencv(),
         ..Default::default()
     };
     for path in &photos {

@@ -37,7 +37,11 @@
 //! - `matching.rs`: [`matching::match_descriptors`] (exact integer brute force on AVX-512 VNNI,
 //!   AVX2 or faer, [`matching::DistanceKernel`], ratio and mutual tests in one pass, rayon),
 //!   [`matching::select_pairs`] (exhaustive, sequential, retrieval),
-//!   [`matching::match_pairs`] (matching + verification of many pairs).
+//!   [`matching::match_and_verify_pair`] (matching, verification, guided matching under the
+//!   verified geometry, verification again), [`matching::match_pairs`] (the same over many
+//!   pairs).
+//! - `guided_matching.rs`: [`guided_matching::match_guided`], descriptor matching restricted
+//!   to keypoints near each other's epipolar lines (grid walk along the lines).
 //! - `view_graph.rs`: [`view_graph::ViewGraph`] (petgraph) and its connected components.
 //! - `two_view.rs`: [`two_view::TwoViewGeometry`] of a pair (kind, F, E, H, relative pose, inliers).
 //! - `focal_prior.rs`: [`focal_prior::focal_from_exif`], [`focal_prior::read_calibration_file`].
@@ -58,6 +62,7 @@ pub mod extract;
 pub mod feature_file;
 pub mod focal_prior;
 pub mod fundamental;
+pub mod guided_matching;
 pub mod homography;
 pub mod loss;
 pub mod mapper;

@@ -135,7 +135,13 @@ fn rigid_fit(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Option<Rigid3> {
         d[(2, 2)] = -1.0;
     }
     let r = u * d * vt;
-    let rotation = UnitQuaternion::from_matrix(&r);
+    // U D Vᵀ is orthonormal to rounding. (nalgebra's iterative `from_matrix` never returns on
+    // a NaN matrix, which degenerate triples can produce.)
+    if !r.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let rotation =
+        UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
     Some(Rigid3 {
         rotation,
         translation: md - rotation * ms,

@@ -24,7 +24,7 @@ use nalgebra::Point2;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::bundle::{BundleError, BundleSetup, bundle_adjust};
+use crate::bundle::{BundleError, BundleSetup, bundle_adjust, intrinsics_covariance};
 use crate::evaluate::mean_reprojection_error;
 use crate::focal_prior::FocalSource;
 use crate::mapper::{
@@ -122,6 +122,11 @@ pub struct SfmSummary {
     pub camera_model: String,
     /// Focal lengths of the main model's cameras after adjustment, pixels, by camera id.
     pub focal_px: BTreeMap<u32, f64>,
+    /// Standard deviation of each refined intrinsic parameter of the main model's cameras
+    /// (COLMAP's parameter names: f, cx, k1, ...), by camera id, from the covariance of the
+    /// final adjustment (`bundle::intrinsics_covariance`): how well the photos determine the
+    /// self-calibration. Empty for calibrated cameras.
+    pub intrinsics_std: BTreeMap<u32, BTreeMap<String, f64>>,
     /// Registered images of the main model.
     pub registered: usize,
     /// 3D points of the main model.
@@ -563,6 +568,7 @@ pub fn run_sfm(
         std::fs::remove_dir_all(&stale).map_err(|e| FormatError::io(&stale, e))?;
     }
     let main = &out.models[0];
+    let intrinsics_std = intrinsics_standard_deviations(main, &mapper);
     let mut cloud = Mesh::default();
     let mut colours = Vec::with_capacity(main.points3d.len());
     for p in main.points3d.values() {
@@ -613,6 +619,7 @@ pub fn run_sfm(
             .iter()
             .map(|(&id, c)| (id, c.focal()))
             .collect(),
+        intrinsics_std,
         registered: main.images.len(),
         points: main.points3d.len(),
         mean_reprojection_px: mean_reprojection_error(main),
@@ -627,6 +634,40 @@ pub fn run_sfm(
         seconds_write,
         seconds_total: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// The standard deviations of a model's refined intrinsics (see
+/// [`SfmSummary::intrinsics_std`]); empty when nothing is refined or the covariance cannot be
+/// computed (reported in the log).
+pub fn intrinsics_standard_deviations(
+    model: &Reconstruction,
+    mapper: &MapperConfig,
+) -> BTreeMap<u32, BTreeMap<String, f64>> {
+    let mut bundle = mapper.bundle.clone();
+    if mapper.calibrated {
+        bundle.refine_focal = false;
+        bundle.refine_principal_point = false;
+    }
+    let covariances = match intrinsics_covariance(model, &BundleSetup::global(model), &bundle) {
+        Ok(c) => c,
+        Err(e) => {
+            tracing::warn!("no standard deviations of the intrinsics: {e}");
+            return BTreeMap::new();
+        }
+    };
+    covariances
+        .into_iter()
+        .map(|c| {
+            let names = model.cameras[&c.camera_id].model.param_names();
+            let std = c
+                .params
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| (names[k].to_string(), c.covariance[(i, i)].sqrt()))
+                .collect();
+            (c.camera_id, std)
+        })
+        .collect()
 }
 
 /// A COLMAP model folder, or a workspace (its main model `sparse/0`).

@@ -22,6 +22,7 @@
 use std::path::{Path, PathBuf};
 
 use fresco_core::photo::{GreyImage, load_photo};
+use fresco_sfm::dog::DetectorConfig;
 use fresco_sfm::extract::{SiftConfig, extract_features};
 use fresco_sfm::feature_file::Features;
 use rayon::prelude::*;
@@ -109,10 +110,12 @@ fn warp_bilinear(
     out
 }
 
-/// All keypoints (no limit, like OpenCV's default), in OpenCV's coordinates.
+/// All keypoints (no limit, like OpenCV's default) at OpenCV's contrast threshold, in
+/// OpenCV's coordinates.
 fn detect(img: &[u8], w: usize, h: usize) -> (Vec<(f64, f64)>, Features) {
     let config = SiftConfig {
         max_features: 0,
+        detector: DetectorConfig::opencv(),
         ..Default::default()
     };
     let f = extract_features(&to_grey(img, w, h), &config);

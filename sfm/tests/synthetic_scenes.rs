@@ -12,6 +12,7 @@ use fresco_core::{Image, NoProgress, Point3D, Reconstruction, TrackElement};
 use fresco_datasets::{SceneConfig, Shape, build_scene};
 use fresco_sfm::evaluate::evaluate_poses;
 use fresco_sfm::mapper::{MapperConfig, input_from_tracks, map};
+use fresco_sfm::reconstruct::intrinsics_standard_deviations;
 use fresco_sfm::synthetic::SplitMix;
 
 /// Surface samples per scene.
@@ -164,6 +165,19 @@ fn check_scene(shape: Shape) {
     assert!(e.max_rotation_deg < 0.2, "{e:?}");
     assert!((k - k_true).abs() < 0.1 * k_true.abs(), "k {k} vs {k_true}");
     assert!(e.mean_reprojection_px < 1.0);
+    // The reported standard deviations describe the actual self-calibration errors: the
+    // camera model is exact here, so each error is within 4 of its standard deviations
+    // (probability 0.99994 each for a Gaussian estimate).
+    let std = &intrinsics_standard_deviations(model, &MapperConfig::default())[&1];
+    println!("standard deviations {std:?}");
+    assert!(
+        (f - f_true).abs() < 4.0 * std["f"],
+        "f {f} vs {f_true}, {std:?}"
+    );
+    assert!(
+        (k - k_true).abs() < 4.0 * std["k"],
+        "k {k} vs {k_true}, {std:?}"
+    );
 }
 
 #[test]
