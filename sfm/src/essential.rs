@@ -20,7 +20,10 @@
 use fresco_core::Rigid3;
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
-use crate::fundamental::{epipolar_row, fundamental_eight_point, normalise, null_space};
+use crate::fundamental::{
+    MINIMAL_RANK_TOLERANCE, epipolar_row, fundamental_eight_point, normalise,
+};
+use crate::null_space::null_space_of_rank;
 use crate::ransac::Estimator;
 use crate::two_view::Correspondence;
 
@@ -128,8 +131,11 @@ pub fn essential_five_point(sample: &[Correspondence], models: &mut Vec<Matrix3<
     if sample.len() != 5 {
         return;
     }
-    let rows: Vec<SMatrix<f64, 1, 9>> = sample.iter().map(|c| epipolar_row(&c.x1, &c.x2)).collect();
-    let Some(basis) = null_space::<4>(&rows) else {
+    let mut design = SMatrix::<f64, 5, 9>::zeros();
+    for (i, c) in sample.iter().enumerate() {
+        design.set_row(i, &epipolar_row(&c.x1, &c.x2));
+    }
+    let Some(basis) = null_space_of_rank::<5, 9, 4>(&design, MINIMAL_RANK_TOLERANCE) else {
         return;
     };
     // E = x X + y Y + z Z + W with X, Y, Z, W the null vectors (row-major 3x3).
@@ -208,16 +214,16 @@ pub fn essential_five_point(sample: &[Correspondence], models: &mut Vec<Matrix3<
         if lambda.im.abs() > 1e-8 * scale.max(lambda.re.abs()) {
             continue;
         }
-        // The eigenvector: the null vector of (A - λ I).
+        // The eigenvector: the null vector of (A - λ I), rank 9 for a simple eigenvalue (λ is
+        // a rounded eigenvalue, so the tenth pivot is near zero rather than zero, and is
+        // not used).
         let mut shifted = action;
         for i in 0..10 {
             shifted[(i, i)] -= lambda.re;
         }
-        let svd = shifted.svd(false, true);
-        let Some(vt) = svd.v_t else {
+        let Some([v]) = null_space_of_rank::<10, 10, 1>(&shifted, 1e-14) else {
             continue;
         };
-        let v = vt.row(9);
         if v[9].abs() < 1e-12 {
             continue;
         }

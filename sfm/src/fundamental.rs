@@ -8,6 +8,7 @@
 
 use nalgebra::{Matrix3, Point2, SMatrix, Vector3};
 
+use crate::null_space::null_space_of_rank;
 use crate::ransac::Estimator;
 use crate::two_view::Correspondence;
 
@@ -121,6 +122,10 @@ pub fn fundamental_eight_point(data: &[Correspondence]) -> Option<Matrix3<f64>> 
     normalise(t2.transpose() * f * t1)
 }
 
+/// Relative size below which a pivot of a minimal sample's design matrix means the sample is
+/// degenerate (its null space is larger than the solver's).
+pub(crate) const MINIMAL_RANK_TOLERANCE: f64 = 1e-12;
+
 /// The 7-point fundamental matrices (up to three) of a 7-correspondence sample, each rank 2 and
 /// of unit Frobenius norm.
 pub fn fundamental_seven_point(sample: &[Correspondence], models: &mut Vec<Matrix3<f64>>) {
@@ -133,11 +138,14 @@ pub fn fundamental_seven_point(sample: &[Correspondence], models: &mut Vec<Matri
     ) else {
         return;
     };
-    let rows: Vec<_> = sample
-        .iter()
-        .map(|c| epipolar_row(&transform(&t1, &c.x1), &transform(&t2, &c.x2)))
-        .collect();
-    let Some([a, b]) = null_space::<2>(&rows) else {
+    let mut design = SMatrix::<f64, 7, 9>::zeros();
+    for (i, c) in sample.iter().enumerate() {
+        design.set_row(
+            i,
+            &epipolar_row(&transform(&t1, &c.x1), &transform(&t2, &c.x2)),
+        );
+    }
+    let Some([a, b]) = null_space_of_rank::<7, 9, 2>(&design, MINIMAL_RANK_TOLERANCE) else {
         return;
     };
     let f1 = matrix_from_row_major(a.as_slice());

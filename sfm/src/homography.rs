@@ -7,6 +7,7 @@
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use crate::fundamental::{matrix_from_row_major, normalise, normalising_transform, transform};
+use crate::null_space::null_space_of_rank;
 use crate::ransac::Estimator;
 use crate::two_view::Correspondence;
 
@@ -53,23 +54,20 @@ pub fn homography_dlt(data: &[Correspondence]) -> Option<Matrix3<f64>> {
             ata += r1.transpose() * r1 + r2.transpose() * r2;
         }
     }
-    let a = if data.len() <= 4 {
-        let mut a = SMatrix::<f64, 9, 9>::zeros();
+    let hn = if data.len() == 4 {
+        // A minimal sample: the exact 1-D null space of the 8x9 system; three collinear
+        // points leave a 2-D one (a pivot below 1e-9 of the largest entry): refused.
+        let mut a = SMatrix::<f64, 8, 9>::zeros();
         for (i, r) in rows.iter().enumerate() {
             a.set_row(i, r);
         }
-        a
+        let [h] = null_space_of_rank::<8, 9, 1>(&a, 1e-9)?;
+        matrix_from_row_major(h.as_slice())
     } else {
-        ata
+        let svd = ata.svd(false, true);
+        let vt = svd.v_t?;
+        matrix_from_row_major(vt.row(8).transpose().as_slice())
     };
-    let svd = a.svd(false, true);
-    let vt = svd.v_t?;
-    let s = svd.singular_values;
-    // A minimal sample with three collinear points leaves a 2-D null space (s[7] ~ 0 too).
-    if data.len() == 4 && s[7] <= 1e-9 * s[0] {
-        return None;
-    }
-    let hn = matrix_from_row_major(vt.row(8).transpose().as_slice());
     let h = t2.try_inverse()? * hn * t1;
     if h.determinant().abs() < 1e-12 * h.norm().powi(3) {
         return None;
