@@ -65,63 +65,96 @@ const fn monomial_index(a: u8, b: u8, c: u8) -> usize {
     panic!("not a monomial of degree <= 3")
 }
 
-/// `INDEX[a][b][c]`: index in [`MONOMIALS`] of `x^a y^b z^c` (unused entries `usize::MAX`).
-const INDEX: [[[usize; 4]; 4]; 4] = {
-    let mut t = [[[usize::MAX; 4]; 4]; 4];
+/// A polynomial in `x, y, z` of degree ≤ 3, coefficients in [`MONOMIALS`] order.
+#[derive(Clone, Copy)]
+struct Poly([f64; 20]);
+
+/// A polynomial of degree ≤ 1: coefficients of `x, y, z, 1` (`MONOMIALS[16..20]`).
+#[derive(Clone, Copy)]
+struct Linear([f64; 4]);
+
+/// A polynomial of degree ≤ 2: coefficients in `MONOMIALS[10..20]` order.
+#[derive(Clone, Copy)]
+struct Quadratic([f64; 10]);
+
+/// First index of the degree-≤2 monomials and of the degree-≤1 ones in [`MONOMIALS`].
+const QUADRATIC_START: usize = 10;
+const LINEAR_START: usize = 16;
+
+/// `LINEAR_TIMES_LINEAR[i][j]`: index in [`Quadratic`] of the product of linear monomials
+/// `i` and `j`.
+const LINEAR_TIMES_LINEAR: [[usize; 4]; 4] = {
+    let mut t = [[0; 4]; 4];
     let mut i = 0;
-    while i < 20 {
-        let m = MONOMIALS[i];
-        t[m.0 as usize][m.1 as usize][m.2 as usize] = i;
+    while i < 4 {
+        let mut j = 0;
+        while j < 4 {
+            let (a, b) = (MONOMIALS[LINEAR_START + i], MONOMIALS[LINEAR_START + j]);
+            t[i][j] = monomial_index(a.0 + b.0, a.1 + b.1, a.2 + b.2) - QUADRATIC_START;
+            j += 1;
+        }
         i += 1;
     }
     t
 };
 
-/// A polynomial in `x, y, z` of degree ≤ 3, coefficients in [`MONOMIALS`] order.
-#[derive(Clone, Copy)]
-struct Poly([f64; 20]);
+/// `QUADRATIC_TIMES_LINEAR[i][j]`: index in [`Poly`] of the product of quadratic monomial `i`
+/// and linear monomial `j`.
+const QUADRATIC_TIMES_LINEAR: [[usize; 4]; 10] = {
+    let mut t = [[0; 4]; 10];
+    let mut i = 0;
+    while i < 10 {
+        let mut j = 0;
+        while j < 4 {
+            let (a, b) = (MONOMIALS[QUADRATIC_START + i], MONOMIALS[LINEAR_START + j]);
+            t[i][j] = monomial_index(a.0 + b.0, a.1 + b.1, a.2 + b.2);
+            j += 1;
+        }
+        i += 1;
+    }
+    t
+};
+
+impl Linear {
+    fn mul(&self, other: &Linear) -> Quadratic {
+        let mut r = [0.0; 10];
+        for (i, &a) in self.0.iter().enumerate() {
+            for (j, &b) in other.0.iter().enumerate() {
+                r[LINEAR_TIMES_LINEAR[i][j]] += a * b;
+            }
+        }
+        Quadratic(r)
+    }
+}
+
+impl Quadratic {
+    fn zero() -> Quadratic {
+        Quadratic([0.0; 10])
+    }
+    fn add_scaled(&mut self, other: &Quadratic, s: f64) {
+        for (a, b) in self.0.iter_mut().zip(other.0.iter()) {
+            *a += s * b;
+        }
+    }
+    fn mul(&self, other: &Linear) -> Poly {
+        let mut r = [0.0; 20];
+        for (i, &a) in self.0.iter().enumerate() {
+            for (j, &b) in other.0.iter().enumerate() {
+                r[QUADRATIC_TIMES_LINEAR[i][j]] += a * b;
+            }
+        }
+        Poly(r)
+    }
+}
 
 impl Poly {
     fn zero() -> Poly {
         Poly([0.0; 20])
     }
-    fn linear(x: f64, y: f64, z: f64, one: f64) -> Poly {
-        let mut p = Poly::zero();
-        p.0[monomial_index(1, 0, 0)] = x;
-        p.0[monomial_index(0, 1, 0)] = y;
-        p.0[monomial_index(0, 0, 1)] = z;
-        p.0[monomial_index(0, 0, 0)] = one;
-        p
-    }
-    fn mul(&self, other: &Poly) -> Poly {
-        let mut r = Poly::zero();
-        for (i, &a) in self.0.iter().enumerate() {
-            if a == 0.0 {
-                continue;
-            }
-            let (ea, eb, ec) = MONOMIALS[i];
-            for (j, &b) in other.0.iter().enumerate() {
-                if b == 0.0 {
-                    continue;
-                }
-                let (fa, fb, fc) = MONOMIALS[j];
-                // Callers multiply degree-1 by degree-≤2 polynomials only: the sum stays ≤ 3.
-                r.0[INDEX[(ea + fa) as usize][(eb + fb) as usize][(ec + fc) as usize]] += a * b;
-            }
+    fn add_scaled(&mut self, other: &Poly, s: f64) {
+        for (a, b) in self.0.iter_mut().zip(other.0.iter()) {
+            *a += s * b;
         }
-        r
-    }
-    fn add(&self, other: &Poly) -> Poly {
-        let mut r = *self;
-        for (a, b) in r.0.iter_mut().zip(other.0.iter()) {
-            *a += b;
-        }
-        r
-    }
-    fn scale(&self, s: f64) -> Poly {
-        let mut r = *self;
-        r.0.iter_mut().for_each(|a| *a *= s);
-        r
     }
 }
 
@@ -139,35 +172,45 @@ pub fn essential_five_point(sample: &[Correspondence], models: &mut Vec<Matrix3<
         return;
     };
     // E = x X + y Y + z Z + W with X, Y, Z, W the null vectors (row-major 3x3).
-    let e: [[Poly; 3]; 3] = std::array::from_fn(|r| {
+    let e: [[Linear; 3]; 3] = std::array::from_fn(|r| {
         std::array::from_fn(|c| {
             let k = 3 * r + c;
-            Poly::linear(basis[0][k], basis[1][k], basis[2][k], basis[3][k])
+            Linear([basis[0][k], basis[1][k], basis[2][k], basis[3][k]])
         })
     });
-    let mut equations: Vec<Poly> = Vec::with_capacity(10);
+    let mut equations: [Poly; 10] = [Poly::zero(); 10];
     // det E (cofactor expansion along the first row).
     let minor = |r1: usize, r2: usize, c1: usize, c2: usize| {
-        // e[r1][c1] e[r2][c2] - e[r1][c2] e[r2][c1], degree 2
-        e[r1][c1]
-            .mul(&e[r2][c2])
-            .add(&e[r1][c2].mul(&e[r2][c1]).scale(-1.0))
+        let mut m = e[r1][c1].mul(&e[r2][c2]);
+        m.add_scaled(&e[r1][c2].mul(&e[r2][c1]), -1.0);
+        m
     };
-    let det = e[0][0]
-        .mul(&minor(1, 2, 1, 2))
-        .add(&e[0][1].mul(&minor(1, 2, 0, 2)).scale(-1.0))
-        .add(&e[0][2].mul(&minor(1, 2, 0, 1)));
-    equations.push(det);
+    let mut det = minor(1, 2, 1, 2).mul(&e[0][0]);
+    det.add_scaled(&minor(1, 2, 0, 2).mul(&e[0][1]), -1.0);
+    det.add_scaled(&minor(1, 2, 0, 1).mul(&e[0][2]), 1.0);
+    equations[0] = det;
     // E Eᵀ (degree 2) and its trace.
-    let eet: [[Poly; 3]; 3] = std::array::from_fn(|i| {
-        std::array::from_fn(|j| (0..3).fold(Poly::zero(), |acc, k| acc.add(&e[i][k].mul(&e[j][k]))))
+    let eet: [[Quadratic; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let mut q = Quadratic::zero();
+            for (a, b) in e[i].iter().zip(&e[j]) {
+                q.add_scaled(&a.mul(b), 1.0);
+            }
+            q
+        })
     });
-    let trace = eet[0][0].add(&eet[1][1]).add(&eet[2][2]);
+    let mut trace = eet[0][0];
+    trace.add_scaled(&eet[1][1], 1.0);
+    trace.add_scaled(&eet[2][2], 1.0);
     // 2 E Eᵀ E - tr(E Eᵀ) E = 0, nine cubic equations.
     for (i, e_row) in e.iter().enumerate() {
         for (j, e_ij) in e_row.iter().enumerate() {
-            let p = (0..3).fold(Poly::zero(), |acc, k| acc.add(&e[k][j].mul(&eet[i][k])));
-            equations.push(p.scale(2.0).add(&e_ij.mul(&trace).scale(-1.0)));
+            let mut p = Poly::zero();
+            for k in 0..3 {
+                p.add_scaled(&eet[i][k].mul(&e[k][j]), 2.0);
+            }
+            p.add_scaled(&trace.mul(e_ij), -1.0);
+            equations[1 + 3 * i + j] = p;
         }
     }
     let mut cubic = SMatrix::<f64, 10, 10>::zeros();
