@@ -845,14 +845,59 @@ fn accumulate<const K: usize>(
     wb: usize,
     sign: f64,
 ) {
-    for i in 0..wa {
-        let row = &mut values[slot + i * stride..slot + i * stride + wb];
-        for (j, x) in row.iter_mut().enumerate() {
+    // The common block shapes (a pose has 6 free parameters, 5 for the gauge camera; a
+    // shared camera 1-2) with their sizes known at compile time, so that the loops unroll;
+    // the same operations in the same order as the general loop.
+    match (wa, wb) {
+        (6, 6) => accumulate_fixed::<K, 6, 6>(values, slot, stride, a, ra, b, rb, sign),
+        (6, 2) => accumulate_fixed::<K, 6, 2>(values, slot, stride, a, ra, b, rb, sign),
+        (2, 6) => accumulate_fixed::<K, 2, 6>(values, slot, stride, a, ra, b, rb, sign),
+        (2, 2) => accumulate_fixed::<K, 2, 2>(values, slot, stride, a, ra, b, rb, sign),
+        (6, 1) => accumulate_fixed::<K, 6, 1>(values, slot, stride, a, ra, b, rb, sign),
+        (1, 6) => accumulate_fixed::<K, 1, 6>(values, slot, stride, a, ra, b, rb, sign),
+        (1, 1) => accumulate_fixed::<K, 1, 1>(values, slot, stride, a, ra, b, rb, sign),
+        _ => {
+            for i in 0..wa {
+                let row = &mut values[slot + i * stride..slot + i * stride + wb];
+                for (j, x) in row.iter_mut().enumerate() {
+                    let mut dot = 0.0;
+                    for k in 0..K {
+                        dot += a[(ra + i, k)] * b[(rb + j, k)];
+                    }
+                    *x += sign * dot;
+                }
+            }
+        }
+    }
+}
+
+/// [`accumulate`] for a `WA x WB` block.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn accumulate_fixed<const K: usize, const WA: usize, const WB: usize>(
+    values: &mut [f64],
+    slot: usize,
+    stride: usize,
+    a: &SMatrix<f64, MAX_DC, K>,
+    ra: usize,
+    b: &SMatrix<f64, MAX_DC, K>,
+    rb: usize,
+    sign: f64,
+) {
+    let mut block = [[0.0f64; WB]; WA];
+    for (i, out) in block.iter_mut().enumerate() {
+        for (j, x) in out.iter_mut().enumerate() {
             let mut dot = 0.0;
             for k in 0..K {
                 dot += a[(ra + i, k)] * b[(rb + j, k)];
             }
-            *x += sign * dot;
+            *x = sign * dot;
+        }
+    }
+    for (i, out) in block.iter().enumerate() {
+        let row = &mut values[slot + i * stride..slot + i * stride + WB];
+        for (x, v) in row.iter_mut().zip(out) {
+            *x += v;
         }
     }
 }
