@@ -81,49 +81,61 @@ struct Quadratic([f64; 10]);
 const QUADRATIC_START: usize = 10;
 const LINEAR_START: usize = 16;
 
-/// `LINEAR_TIMES_LINEAR[i][j]`: index in [`Quadratic`] of the product of linear monomials
-/// `i` and `j`.
-const LINEAR_TIMES_LINEAR: [[usize; 4]; 4] = {
-    let mut t = [[0; 4]; 4];
+/// `table[i][j]`: the index, less `offset`, in [`MONOMIALS`] of the product of monomials
+/// `a_start + i` and `b_start + j`.
+const fn product_table<const A: usize, const B: usize>(
+    a_start: usize,
+    b_start: usize,
+    offset: usize,
+) -> [[usize; B]; A] {
+    let mut t = [[0; B]; A];
     let mut i = 0;
-    while i < 4 {
+    while i < A {
         let mut j = 0;
-        while j < 4 {
-            let (a, b) = (MONOMIALS[LINEAR_START + i], MONOMIALS[LINEAR_START + j]);
-            t[i][j] = monomial_index(a.0 + b.0, a.1 + b.1, a.2 + b.2) - QUADRATIC_START;
+        while j < B {
+            let (a, b) = (MONOMIALS[a_start + i], MONOMIALS[b_start + j]);
+            t[i][j] = monomial_index(a.0 + b.0, a.1 + b.1, a.2 + b.2) - offset;
             j += 1;
         }
         i += 1;
     }
     t
-};
+}
 
-/// `QUADRATIC_TIMES_LINEAR[i][j]`: index in [`Poly`] of the product of quadratic monomial `i`
-/// and linear monomial `j`.
-const QUADRATIC_TIMES_LINEAR: [[usize; 4]; 10] = {
-    let mut t = [[0; 4]; 10];
-    let mut i = 0;
-    while i < 10 {
-        let mut j = 0;
-        while j < 4 {
-            let (a, b) = (MONOMIALS[QUADRATIC_START + i], MONOMIALS[LINEAR_START + j]);
-            t[i][j] = monomial_index(a.0 + b.0, a.1 + b.1, a.2 + b.2);
-            j += 1;
+/// Index in [`Quadratic`] of the product of linear monomials `i` and `j`.
+const LINEAR_TIMES_LINEAR: [[usize; 4]; 4] =
+    product_table::<4, 4>(LINEAR_START, LINEAR_START, QUADRATIC_START);
+
+/// Index in [`Poly`] of the product of quadratic monomial `i` and linear monomial `j`.
+const QUADRATIC_TIMES_LINEAR: [[usize; 4]; 10] =
+    product_table::<10, 4>(QUADRATIC_START, LINEAR_START, 0);
+
+/// The coefficients of the product of two polynomials, `table` giving where each product of
+/// monomials lands.
+fn multiply<const A: usize, const B: usize, const R: usize>(
+    a: &[f64; A],
+    b: &[f64; B],
+    table: &[[usize; B]; A],
+) -> [f64; R] {
+    let mut r = [0.0; R];
+    for (&x, row) in a.iter().zip(table) {
+        for (&y, &k) in b.iter().zip(row) {
+            r[k] += x * y;
         }
-        i += 1;
     }
-    t
-};
+    r
+}
+
+/// `x += s y`, coefficient by coefficient.
+fn add_scaled<const N: usize>(x: &mut [f64; N], y: &[f64; N], s: f64) {
+    for (a, b) in x.iter_mut().zip(y) {
+        *a += s * b;
+    }
+}
 
 impl Linear {
     fn mul(&self, other: &Linear) -> Quadratic {
-        let mut r = [0.0; 10];
-        for (i, &a) in self.0.iter().enumerate() {
-            for (j, &b) in other.0.iter().enumerate() {
-                r[LINEAR_TIMES_LINEAR[i][j]] += a * b;
-            }
-        }
-        Quadratic(r)
+        Quadratic(multiply(&self.0, &other.0, &LINEAR_TIMES_LINEAR))
     }
 }
 
@@ -132,18 +144,10 @@ impl Quadratic {
         Quadratic([0.0; 10])
     }
     fn add_scaled(&mut self, other: &Quadratic, s: f64) {
-        for (a, b) in self.0.iter_mut().zip(other.0.iter()) {
-            *a += s * b;
-        }
+        add_scaled(&mut self.0, &other.0, s);
     }
     fn mul(&self, other: &Linear) -> Poly {
-        let mut r = [0.0; 20];
-        for (i, &a) in self.0.iter().enumerate() {
-            for (j, &b) in other.0.iter().enumerate() {
-                r[QUADRATIC_TIMES_LINEAR[i][j]] += a * b;
-            }
-        }
-        Poly(r)
+        Poly(multiply(&self.0, &other.0, &QUADRATIC_TIMES_LINEAR))
     }
 }
 
@@ -152,9 +156,7 @@ impl Poly {
         Poly([0.0; 20])
     }
     fn add_scaled(&mut self, other: &Poly, s: f64) {
-        for (a, b) in self.0.iter_mut().zip(other.0.iter()) {
-            *a += s * b;
-        }
+        add_scaled(&mut self.0, &other.0, s);
     }
 }
 
