@@ -1,12 +1,13 @@
 //! fresco-sfm: photos to cameras and a sparse point cloud (paper 003, section 3).
 //!
-//! Will hold: SIFT-like features (DoG scale space, 128-D descriptors), descriptor matching,
+//! Holds: SIFT-like features (DoG scale space, 128-D descriptors), descriptor matching,
 //! geometric verification (fundamental, essential, homography) inside one generic RANSAC,
 //! EXIF focal priors, the view graph, track building, incremental mapping (initial pair, PnP,
 //! triangulation, retriangulation, filtering) and bundle adjustment with a Schur complement.
 //!
 //! - `bundle.rs`: [`bundle::bundle_adjust`] over a [`bundle::BundleSetup`] (global or local),
-//!   Levenberg–Marquardt with the Schur complement on the points, robust losses (`loss.rs`).
+//!   Levenberg–Marquardt with the Schur complement on the points, robust losses (`loss.rs`);
+//!   [`bundle::intrinsics_covariance`], how well the data determine the self-calibration.
 //! - `tracks.rs`: [`tracks::build_tracks`], union-find over verified matches, inconsistent
 //!   tracks split.
 //! - `triangulation.rs`: [`triangulation::triangulate`], multi-view DLT, refinement, checks.
