@@ -9,10 +9,10 @@
 //! the same inliers ("gt-start"): if it is as large as the estimate's, the estimator found the
 //! minimum and the correspondences set the error.
 //!
-//! Usage: `cargo run --release -p fresco-sfm --example two_view_diag [-- --ring] [--unguided]`
+//! Usage: `cargo run --release -p fresco-sfm --example two_view_diag [-- --ring] [--guided]`
 //! (`--ring`: the 16 file-name neighbours of datasets/reference/opencv/two_view_ring.json
-//! instead of the five pairs of two_view_pairs.json; `--unguided`: fresco's matches without
-//! the guided pass, as before guided matching existed).
+//! instead of the five pairs of two_view_pairs.json; `--guided`: fresco's matches with the
+//! guided pass, as `fresco match --guided` makes them).
 
 use std::path::PathBuf;
 
@@ -20,7 +20,7 @@ use fresco_core::Rigid3;
 use fresco_sfm::essential::refine_relative_pose_robust;
 use fresco_sfm::extract::{SiftConfig, extract_features_from_file};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
-use fresco_sfm::matching::{MatchingConfig, match_and_verify_pair, match_descriptors};
+use fresco_sfm::matching::{MatchingConfig, match_and_verify_pair};
 use fresco_sfm::two_view::{Correspondence, PairKind};
 use fresco_sfm::verification::{VerificationConfig, normalise_pixel, verify_pair_scaled};
 use nalgebra::{Matrix3, Point2, Rotation3, UnitQuaternion, Vector3};
@@ -185,7 +185,7 @@ fn print_row(pair: &str, who: &str, r: &Row, extra: &str) {
 
 fn main() {
     let ring = std::env::args().any(|a| a == "--ring");
-    let unguided = std::env::args().any(|a| a == "--unguided");
+    let guided = std::env::args().any(|a| a == "--guided");
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../datasets");
     let file = if ring {
         "two_view_ring.json"
@@ -243,30 +243,20 @@ fn main() {
         };
         let sc =
             |i: usize| -> Vec<f64> { feats[i].keypoints.iter().map(|k| k.scale as f64).collect() };
-        let m = if unguided {
-            match_descriptors(
-                &feats[0].descriptors,
-                &feats[1].descriptors,
-                &MatchingConfig::default(),
-            )
-        } else {
-            // As `match_pairs` runs it: the guided matches when the guided pass was kept.
-            let pair = match_and_verify_pair(
-                [&kp(0), &kp(1)],
-                [&sc(0), &sc(1)],
-                [&feats[0].descriptors, &feats[1].descriptors],
-                [&prior_fr, &prior_fr],
-                &MatchingConfig::default(),
-                &VerificationConfig::default(),
-            );
-            pair.guided_matches.unwrap_or_else(|| {
-                match_descriptors(
-                    &feats[0].descriptors,
-                    &feats[1].descriptors,
-                    &MatchingConfig::default(),
-                )
-            })
-        };
+        // As `match_pairs` runs it: with `--guided`, the guided matches when the guided pass
+        // was kept.
+        let m = match_and_verify_pair(
+            [&kp(0), &kp(1)],
+            [&sc(0), &sc(1)],
+            [&feats[0].descriptors, &feats[1].descriptors],
+            [&prior_fr, &prior_fr],
+            &MatchingConfig {
+                guided,
+                ..MatchingConfig::default()
+            },
+            &VerificationConfig::default(),
+        )
+        .matches;
         let fr_scales: Vec<(f64, f64)> = m
             .iter()
             .map(|mm| {
@@ -281,25 +271,9 @@ fn main() {
             .map(|mm| {
                 let a = feats[0].keypoints[mm[0] as usize];
                 let b = feats[1].keypoints[mm[1] as usize];
-                let k1: f64 = std::env::var("FRESCO_K1")
-                    .ok()
-                    .and_then(|v| v.parse().ok())
-                    .unwrap_or(0.0);
-                let und = |x: f64, y: f64| {
-                    // invert x_d = x_u (1 + k1 r_u^2) about (cx, cy) with focal f
-                    let (cx, cy, f) = (prior_fr.cx, prior_fr.cy, prior_fr.focal_x);
-                    let (xd, yd) = ((x - cx) / f, (y - cy) / f);
-                    let (mut xu, mut yu) = (xd, yd);
-                    for _ in 0..20 {
-                        let r2 = xu * xu + yu * yu;
-                        xu = xd / (1.0 + k1 * r2);
-                        yu = yd / (1.0 + k1 * r2);
-                    }
-                    Point2::new(cx + f * xu, cy + f * yu)
-                };
                 Correspondence {
-                    x1: und(a.x as f64, a.y as f64),
-                    x2: und(b.x as f64, b.y as f64),
+                    x1: Point2::new(a.x as f64, a.y as f64),
+                    x2: Point2::new(b.x as f64, b.y as f64),
                 }
             })
             .collect();

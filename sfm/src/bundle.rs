@@ -1082,13 +1082,19 @@ impl ReducedSolver {
 
     /// Solves `S x = g`; `None` if `S` is not positive definite (more damping needed).
     fn solve(&self, s: &[f64], g: &[f64]) -> Option<Vec<f64>> {
+        self.solve_columns(s, g.to_vec(), 1)
+    }
+
+    /// Solves `S X = B` for the `k` columns of `b` (column-major, `n x k`) with one
+    /// factorisation of `S`; `None` if `S` is not positive definite.
+    fn solve_columns(&self, s: &[f64], b: Vec<f64>, k: usize) -> Option<Vec<f64>> {
         use faer::prelude::Solve;
-        let n = g.len();
+        let n = b.len() / k.max(1);
         if n == 0 {
             return Some(Vec::new());
         }
-        let values: Vec<f64> = self.gather.iter().map(|&k| s[k]).collect();
-        let mut x = g.to_vec();
+        let values: Vec<f64> = self.gather.iter().map(|&i| s[i]).collect();
+        let mut x = b;
         match &self.symbolic {
             Some(symbolic) => {
                 // The pattern is rebuilt per solve (cheap) because faer's sparse matrix
@@ -1107,7 +1113,7 @@ impl ReducedSolver {
                     faer::Side::Upper,
                 )
                 .ok()?;
-                llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, n, 1));
+                llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, n, k));
             }
             None => {
                 let mut dense = faer::Mat::<f64>::zeros(n, n);
@@ -1119,7 +1125,7 @@ impl ReducedSolver {
                     }
                 }
                 let llt = dense.llt(faer::Side::Lower).ok()?;
-                llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, n, 1));
+                llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, n, k));
             }
         }
         x.iter().all(|v| v.is_finite()).then_some(x)
@@ -1385,30 +1391,42 @@ pub fn intrinsics_covariance(
         ));
     }
     let sigma2 = lin.obs.iter().map(|l| l.r.norm_squared()).sum::<f64>() / dof as f64;
+    // The columns of S⁻¹ at every camera's intrinsics, from one factorisation.
     let n = problem.n_camera_unknowns;
+    let columns: Vec<usize> = problem
+        .cameras
+        .iter()
+        .filter_map(|cam| {
+            cam.group
+                .map(|g| problem.group_offset[g]..problem.group_offset[g] + cam.free.len())
+        })
+        .flatten()
+        .collect();
+    let mut rhs = vec![0.0; n * columns.len()];
+    for (j, &c) in columns.iter().enumerate() {
+        rhs[j * n + c] = 1.0;
+    }
+    let inverse = solver
+        .solve_columns(&s, rhs, columns.len())
+        .ok_or_else(|| {
+            BundleError::Solver(
+                "the reduced camera matrix is singular: some intrinsics are undetermined".into(),
+            )
+        })?;
     let mut out = Vec::new();
+    let mut first_column = 0;
     for cam in &problem.cameras {
         let Some(g) = cam.group else { continue };
         let offset = problem.group_offset[g];
         let m = cam.free.len();
-        let mut cov = nalgebra::DMatrix::zeros(m, m);
-        for j in 0..m {
-            let mut e = vec![0.0; n];
-            e[offset + j] = 1.0;
-            let x = solver.solve(&s, &e).ok_or_else(|| {
-                BundleError::Solver(format!(
-                    "the reduced camera matrix is singular: camera {}'s intrinsics are undetermined",
-                    cam.camera_id
-                ))
-            })?;
-            for i in 0..m {
-                cov[(i, j)] = sigma2 * x[offset + i];
-            }
-        }
+        let covariance = nalgebra::DMatrix::from_fn(m, m, |i, j| {
+            sigma2 * inverse[(first_column + j) * n + offset + i]
+        });
+        first_column += m;
         out.push(IntrinsicsCovariance {
             camera_id: cam.camera_id,
             params: cam.free.clone(),
-            covariance: cov,
+            covariance,
         });
     }
     Ok(out)

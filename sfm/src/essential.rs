@@ -526,12 +526,9 @@ pub fn refine_relative_pose_robust(
                 .enumerate()
                 .map(|(i, c)| (sampson_residual(&e, c) * weights.map_or(1.0, |w| w[i])).abs()),
         );
-        if abs.is_empty() {
+        let Some(sigma) = crate::loss::mad_scale(&mut abs) else {
             break;
-        }
-        let mid = abs.len() / 2;
-        let median = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
-        let sigma = 1.4826 * median;
+        };
         // Exact data (sigma 0) cannot be improved; a NaN means a broken input.
         if !(sigma.is_finite() && sigma > 0.0) {
             break;

@@ -7,6 +7,17 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The noise level of residuals from their absolute values: 1.4826 x their median (the median
+/// absolute deviation, consistent with the standard deviation for Gaussian noise; Hampel
+/// 1974). Reorders `abs_residuals`; `None` when it is empty.
+pub fn mad_scale(abs_residuals: &mut [f64]) -> Option<f64> {
+    if abs_residuals.is_empty() {
+        return None;
+    }
+    let mid = abs_residuals.len() / 2;
+    Some(1.4826 * *abs_residuals.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
 /// A robust loss with its scale in the residual's units (pixels for reprojection errors):
 /// residuals below the scale count as in plain least squares, larger ones are down-weighted.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -1162,7 +1162,7 @@ impl<'a> Builder<'a> {
 
 /// The adjustment settings: a calibrated camera (K file) keeps its focal length and principal
 /// point; its distortion, which a K file does not give, is still refined if the model has one.
-fn bundle_config(config: &MapperConfig) -> BundleConfig {
+pub(crate) fn bundle_config(config: &MapperConfig) -> BundleConfig {
     let mut bundle = config.bundle.clone();
     if config.calibrated {
         bundle.refine_focal = false;

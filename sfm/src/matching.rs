@@ -28,6 +28,7 @@ use crate::feature_file::{DESCRIPTOR_LEN, Descriptor, Features};
 use crate::focal_prior::FocalPrior;
 use crate::fundamental::sampson_error_squared;
 use crate::guided_matching::{GuidedConfig, match_guided};
+use crate::loss::mad_scale;
 use crate::two_view::{Correspondence, PairKind, TwoViewGeometry, VerifiedPair};
 use crate::verification::{Verification, VerificationConfig, prior_matrix, verify_pair_scaled};
 
@@ -910,15 +911,15 @@ pub fn match_pairs(
     out
 }
 
-/// What [`match_and_verify_pair`] found: the putative matches of the first (unguided) pass,
-/// the guided matches when the pair was matched again, and the final verification.
+/// What [`match_and_verify_pair`] found.
 #[derive(Clone, Debug)]
 pub struct PairMatches {
     /// Descriptor matches of the unguided pass (ratio and mutual tests).
     pub num_matches: usize,
-    /// The guided matches, when the guided pass ran and was kept (the final verification
-    /// ran on them).
-    pub guided_matches: Option<Vec<[u32; 2]>>,
+    /// The putative matches the final verification ran on: the guided ones when the guided
+    /// pass was kept (`guided`), otherwise those of the unguided pass.
+    pub matches: Vec<[u32; 2]>,
+    pub guided: bool,
     pub verification: Verification,
 }
 
@@ -954,7 +955,8 @@ pub fn match_and_verify_pair(
     let first = verify(&matches);
     let mut out = PairMatches {
         num_matches: matches.len(),
-        guided_matches: None,
+        matches,
+        guided: false,
         verification: first,
     };
     if !matching.guided {
@@ -994,7 +996,8 @@ pub fn match_and_verify_pair(
     let before = &out.verification.geometry;
     if second.geometry.kind == before.kind && second.geometry.inliers.len() >= before.inliers.len()
     {
-        out.guided_matches = Some(guided);
+        out.matches = guided;
+        out.guided = true;
         out.verification = second;
     }
     out
@@ -1004,9 +1007,8 @@ pub fn match_and_verify_pair(
 /// 99.7% of Gaussian inliers.
 const GUIDED_BAND_SIGMAS: f64 = 3.0;
 
-/// The noise level (pixels) of a pair's inliers under `f`: 1.4826 x the median Sampson
-/// distance (the median absolute deviation, consistent for Gaussian noise). `None` without
-/// inliers.
+/// The noise level (pixels) of a pair's inliers under `f`: the median absolute deviation of
+/// their Sampson distances ([`mad_scale`]). `None` without inliers.
 fn inlier_noise_px(
     f: &Matrix3<f64>,
     inliers: &[[u32; 2]],
@@ -1022,11 +1024,7 @@ fn inlier_noise_px(
             sampson_error_squared(f, &c).sqrt()
         })
         .collect();
-    if d.is_empty() {
-        return None;
-    }
-    let mid = d.len() / 2;
-    Some(1.4826 * *d.select_nth_unstable_by(mid, f64::total_cmp).1)
+    mad_scale(&mut d)
 }
 
 /// The fundamental matrix (pixels) a verified pair's matches satisfy, for guided matching:

@@ -28,7 +28,8 @@ use crate::bundle::{BundleError, BundleSetup, bundle_adjust, intrinsics_covarian
 use crate::evaluate::mean_reprojection_error;
 use crate::focal_prior::FocalSource;
 use crate::mapper::{
-    Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes, map,
+    Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes,
+    bundle_config, map,
 };
 use crate::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
 use crate::two_view::PairKind;
@@ -643,11 +644,8 @@ pub fn intrinsics_standard_deviations(
     model: &Reconstruction,
     mapper: &MapperConfig,
 ) -> BTreeMap<u32, BTreeMap<String, f64>> {
-    let mut bundle = mapper.bundle.clone();
-    if mapper.calibrated {
-        bundle.refine_focal = false;
-        bundle.refine_principal_point = false;
-    }
+    // The final adjustment's settings, so that the covariance is of what it refined.
+    let bundle = bundle_config(mapper);
     let covariances = match intrinsics_covariance(model, &BundleSetup::global(model), &bundle) {
         Ok(c) => c,
         Err(e) => {
