@@ -8,7 +8,8 @@
 #     pycolmap vs `fresco reconstruct`, interleaved (COLMAP, fresco, COLMAP, fresco, ...),
 #     median of RUNS, wall and CPU seconds and each tool's phase times; fresco's poses
 #     measured with `fresco eval poses` against the ground truth (temple) or COLMAP's
-#     committed model (sceaux);
+#     committed model (sceaux), and each fresco model read back by COLMAP itself
+#     (datasets/reference/read_fresco_model.py: same counts, poses, reprojection error);
 #  3. accuracy: the templeSparseRing test (features through BA in one process, both tools'
 #     pose errors against the ground truth), sfm/tests/temple_sfm.rs, in the release profile.
 # Usage: bench/sfm.sh [ba|whole|accuracy|all]   (default all)
@@ -63,6 +64,9 @@ if [[ $WHAT == whole || $WHAT == all ]]; then
             read -r wall user sys < "$ws.time"
             phases=$(tr -d '\n ' < "$ws.json" | sed -n 's/.*"seconds":{"features":\([0-9.]*\),"match":\([0-9.]*\),"sfm":\([0-9.]*\).*/\1 \2 \3/p')
             echo "fresco $set run $r: wall $wall cpu $(echo "$user + $sys" | bc) phases (features match sfm) $phases"
+            # COLMAP itself reads the model back and finds what fresco reported.
+            "$PYTHON" datasets/reference/read_fresco_model.py "$ws/sparse/0" "$ws.json" \
+                2>/dev/null || echo "COLMAP read-back of fresco's $set model FAILED"
             # Poses against ground truth (temple) or COLMAP's committed model (sceaux).
             "$FRESCO" --json eval poses "$ws" --gt "$gt" | grep -E '"(registered|median_rotation_deg|median_centre_frac|mean_reprojection_px)"' || true
             fw+=("$wall"); fc+=("$(echo "$user + $sys" | bc)"); fph+=("$phases")
