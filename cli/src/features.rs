@@ -104,6 +104,12 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
             args.camera_model
         );
     }
+    if !(args.contrast_threshold >= 0.0 && args.contrast_threshold.is_finite()) {
+        bail!(
+            "--contrast-threshold must be a non-negative number, got {}",
+            args.contrast_threshold
+        );
+    }
     if !args.images.is_dir() {
         bail!("{} is not a folder of photos", args.images.display());
     }
@@ -122,12 +128,6 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
         ..Default::default()
     };
     config.scale_space.upsample = !args.no_upsample;
-    if !(args.contrast_threshold >= 0.0 && args.contrast_threshold.is_finite()) {
-        bail!(
-            "--contrast-threshold must be a non-negative number, got {}",
-            args.contrast_threshold
-        );
-    }
     config.detector.contrast_threshold = args.contrast_threshold;
 
     let bars = crate::progress::Bars::new(ctx);

@@ -154,3 +154,23 @@ fn one_photo_and_no_usable_photo() {
     assert_no_panic(&out);
     assert!(!out.status.success());
 }
+
+#[test]
+fn a_bad_contrast_threshold_is_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let ws = dir.path().join("ws");
+    for value in ["--contrast-threshold=-0.01", "--contrast-threshold=NaN"] {
+        let out = fresco(&[
+            "features",
+            temple("").to_str().unwrap(),
+            "-o",
+            ws.to_str().unwrap(),
+            value,
+        ]);
+        assert_no_panic(&out);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--contrast-threshold"), "{err}");
+        assert!(!ws.exists(), "nothing may be written for a refused run");
+    }
+}
