@@ -42,6 +42,12 @@ pub struct SynthArgs {
     /// Surround the object with a textured box (floor and walls) instead of a plain background.
     #[arg(long)]
     pub backdrop: bool,
+    /// Contrast of the object's albedo (1: full pattern; 0.1: a weakly textured object).
+    #[arg(long, default_value_t = SceneConfig::default().albedo_contrast)]
+    pub albedo_contrast: f64,
+    /// Each photo's exposure is multiplied by a factor drawn in 1 +- this.
+    #[arg(long, default_value_t = SceneConfig::default().exposure_jitter)]
+    pub exposure_jitter: f64,
 }
 
 pub fn run(args: SynthArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -84,6 +90,8 @@ fn config_from_args(args: &SynthArgs) -> anyhow::Result<SceneConfig> {
         layout,
         elevation_deg: args.elevation,
         backdrop: args.backdrop,
+        albedo_contrast: args.albedo_contrast,
+        exposure_jitter: args.exposure_jitter,
         seed: args.seed,
         ..SceneConfig::default()
     })
@@ -117,6 +125,8 @@ mod tests {
             focal: None,
             detail: 0,
             backdrop: false,
+            albedo_contrast: 1.0,
+            exposure_jitter: 0.08,
         }
     }
 

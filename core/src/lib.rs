@@ -12,6 +12,7 @@
 //! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - [`Rng`] (`rng.rs`): the one seeded random generator (SplitMix64); every stage draws from it.
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
 //! - [`FormatError`] (`error.rs`): what was wrong with a file and where; `atomic_file.rs`:
 //!   outputs written under a temporary name, then renamed.
@@ -31,6 +32,7 @@ pub mod pose;
 pub mod progress;
 pub mod raster;
 pub mod reconstruction;
+pub mod rng;
 pub mod topology;
 
 pub use camera::{Camera, CameraError, CameraModel, Pixel};
@@ -39,6 +41,7 @@ pub use mesh::{Aabb, Mesh, MeshError};
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
 pub use progress::{NoProgress, Progress};
 pub use reconstruction::{Image, Point3D, Reconstruction, TrackElement};
+pub use rng::Rng;
 pub use topology::Topology;
 
 /// Re-exported so that every crate names the same nalgebra.

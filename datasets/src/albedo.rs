@@ -23,7 +23,13 @@ pub struct Albedo {
     scale: f64,
     palette: [[f64; 3]; 8],
     stripe_direction: Vector3<f64>,
+    /// Contrast around [`CONTRAST_PIVOT`]: 1 is the full pattern, 0.1 a weakly textured
+    /// surface (each colour pulled 90% of the way to the pivot grey).
+    contrast: f64,
 }
+
+/// The grey that [`Albedo::with_contrast`] pulls colours towards (about the pattern's mean).
+pub const CONTRAST_PIVOT: f64 = 0.45;
 
 impl Albedo {
     pub fn new(seed: u64, scale: f64) -> Albedo {
@@ -54,7 +60,15 @@ impl Albedo {
             scale: if scale > 0.0 { scale } else { 1.0 },
             palette,
             stripe_direction: Vector3::new(r * phi.cos(), r * phi.sin(), z),
+            contrast: 1.0,
         }
+    }
+
+    /// The same albedo with its contrast scaled by `contrast` around [`CONTRAST_PIVOT`]
+    /// (weakly textured surfaces for the hard cases of stereo and structure from motion).
+    pub fn with_contrast(mut self, contrast: f64) -> Albedo {
+        self.contrast = contrast;
+        self
     }
 
     /// Albedo at world point `p`, RGB in [0, 1].
@@ -86,10 +100,15 @@ impl Albedo {
         let spot = fbm(&(q * 4.0 + Vector3::new(17.0, 3.0, 11.0)), seed ^ 4, 2);
         let spot_weight = smoothstep(0.42, 0.5, spot.abs());
         let spot_colour = if spot > 0.0 { 0.95 } else { 0.04 };
-        colour.map(|c| {
+        let full = colour.map(|c| {
             let c = (c * detail).clamp(0.0, 1.0);
             c + (spot_colour - c) * spot_weight
-        })
+        });
+        if self.contrast == 1.0 {
+            // Bit for bit the full pattern (committed references depend on it).
+            return full;
+        }
+        full.map(|c| (CONTRAST_PIVOT + self.contrast * (c - CONTRAST_PIVOT)).clamp(0.0, 1.0))
     }
 
     /// Albedo as 8-bit sRGB-encoded values.
@@ -239,5 +258,28 @@ mod tests {
         colours.sort();
         colours.dedup();
         assert!(colours.len() > 1000, "{} distinct colours", colours.len());
+    }
+
+    #[test]
+    fn reduced_contrast_scales_the_spread_around_the_pivot() {
+        let full = Albedo::new(5, 1.0);
+        let weak = Albedo::new(5, 1.0).with_contrast(0.1);
+        let points: Vec<Point3<f64>> = (0..2000)
+            .map(|i| {
+                Point3::new(
+                    (i as f64 * 0.013).sin(),
+                    i as f64 * 0.001,
+                    (i as f64 * 0.007).cos(),
+                )
+            })
+            .collect();
+        for p in &points {
+            let (f, w) = (full.at(p), weak.at(p));
+            for ch in 0..3 {
+                // No clamping happens at contrast 0.1, so the map is exactly affine.
+                let expected = CONTRAST_PIVOT + 0.1 * (f[ch] - CONTRAST_PIVOT);
+                assert!((w[ch] - expected).abs() < 1e-12);
+            }
+        }
     }
 }

@@ -109,6 +109,9 @@ pub struct SceneConfig {
     /// Each view's exposure is multiplied by a factor drawn in `1 +- exposure_jitter`.
     /// Default 0.08.
     pub exposure_jitter: f64,
+    /// Contrast of the object's albedo around a mid grey: 1 (default) is the full
+    /// procedural pattern, 0.1 a weakly textured object (contrast reduced 10x).
+    pub albedo_contrast: f64,
     /// Samples per pixel side for anti-aliasing. Default 2 (2x2).
     pub supersample: u32,
     /// Surround the object by a large box with its own procedural albedo (a floor the object
@@ -139,6 +142,7 @@ impl Default for SceneConfig {
             elevation_deg: 30.0,
             jitter: 1.0,
             exposure_jitter: 0.08,
+            albedo_contrast: 1.0,
             supersample: 2,
             backdrop: false,
             background: [0, 0, 0],
@@ -213,7 +217,7 @@ pub fn build_scene(config: &SceneConfig) -> Result<Scene, SynthError> {
         .iter()
         .map(|p| (p - centre).norm())
         .fold(0.0, f64::max);
-    let albedo = Albedo::new(config.seed, 1.0);
+    let albedo = Albedo::new(config.seed, 1.0).with_contrast(config.albedo_contrast);
     mesh.colors = Some(mesh.positions.iter().map(|p| albedo.at_u8(p)).collect());
     mesh.compute_vertex_normals();
 
@@ -305,6 +309,7 @@ fn check_config(config: &SceneConfig) -> Result<(), SynthError> {
         ("elevation", config.elevation_deg, -89.0, 89.0),
         ("jitter", config.jitter, 0.0, 10.0),
         ("exposure jitter", config.exposure_jitter, 0.0, 0.9),
+        ("albedo contrast", config.albedo_contrast, 0.0, 1.0),
         ("ambient", config.ambient, 0.0, 1.0),
     ] {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
