@@ -155,6 +155,16 @@ fn read_image(path: &Path) -> Result<RgbaImage> {
 fn load_glb(path: &Path) -> Result<TexturedModel> {
     let bytes = std::fs::read(path).map_err(|e| PstError::io(path, "cannot read the model", e))?;
     let bad = |m: String| PstError::Format(fresco_core::FormatError::invalid(path, m));
+    // A cut file is the usual corruption: say so before the parser's generic message.
+    if bytes.len() >= 12 && bytes.starts_with(b"glTF") {
+        let declared = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as u64;
+        if declared != bytes.len() as u64 {
+            return Err(bad(format!(
+                "the GLB header declares {declared} bytes but the file has {}: truncated or corrupt",
+                bytes.len()
+            )));
+        }
+    }
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid GLB: {e}")))?;
     let blob = gltf.blob.as_deref();
     let buffer_data = |b: gltf::Buffer<'_>| match b.source() {
