@@ -50,15 +50,18 @@ pub struct ObjScene {
 /// Reads an OBJ file and its materials; see the module documentation.
 pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
     let path = path.as_ref();
-    // tobj reports a missing file as a bare "open file failed": check first for a clear error.
-    File::open(path).map_err(|e| FormatError::io(path, e))?;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj(path, &options).map_err(|e| locate_error(path, e))?;
+    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let (models, materials) = tobj::load_obj_buf(&mut BufReader::new(file), &options, |mtl| {
+        load_mtl(&folder.join(mtl))
+    })
+    .map_err(|e| locate_error(path, e))?;
     let materials = match materials {
         Ok(m) => m,
         Err(e) => {
@@ -69,7 +72,6 @@ pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
             Vec::new()
         }
     };
-    let folder = path.parent().unwrap_or(Path::new(""));
     let materials: Vec<ObjMaterial> = materials
         .into_iter()
         .map(|m| ObjMaterial {
@@ -92,6 +94,27 @@ pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
         materials,
         object_names,
     })
+}
+
+/// A material library named by an OBJ file (`mtllib`), for tobj. The name comes from the
+/// file, so only a regular file is read (`mtllib /dev/zero` made tobj read forever), and
+/// colour lines are checked before tobj parses them: tobj 4.0.5 panics on a `Ka`, `Kd`, `Ks`
+/// or `Ke` line with fewer than three numbers (found by the obj fuzz target). A library
+/// that fails either check is reported as unreadable, and the OBJ is read without it.
+fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
+    let regular = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+    if !regular {
+        return Err(tobj::LoadError::OpenFileFailed);
+    }
+    let text = std::fs::read(path).map_err(|_| tobj::LoadError::ReadError)?;
+    for line in text.split(|&b| b == b'\n') {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    }
+    tobj::load_mtl_buf(&mut text.as_slice())
 }
 
 /// Reads only the mesh of an OBJ file.

@@ -48,6 +48,15 @@ pub enum PhotoError {
         max_pixels: u64,
     },
     #[error(
+        "{path}: the header declares {width}x{height} pixels, more than {bytes} bytes of file can encode (a truncated or corrupt file)"
+    )]
+    Truncated {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        bytes: u64,
+    },
+    #[error(
         "{path}: decoding the image would need more memory than fresco allows a photo of at most {max_pixels} pixels (a corrupt header, or a photo to downscale first)"
     )]
     OverMemoryLimit { path: PathBuf, max_pixels: u64 },
@@ -66,6 +75,9 @@ pub enum PhotoError {
 /// medium-format sensors have about 150) are refused unless a caller raises the limit.
 /// Decoding costs 10 to 20 bytes per pixel (the decoded image, its RGB8 copy, the f32 grey).
 pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
+/// Decoded bytes an image file can hold per byte of file (see [`checked_decoder`]).
+const MAX_EXPANSION: u64 = 8 * 1040;
 
 /// What a photo may cost, checked from its header before any pixel is decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -166,11 +178,29 @@ pub fn load_photo(path: &Path) -> Result<Photo, PhotoError> {
 
 /// [`load_photo`] within `limits`.
 pub fn load_photo_within(path: &Path, limits: &PhotoLimits) -> Result<Photo, PhotoError> {
-    let bytes = std::fs::read(path).map_err(|source| PhotoError::Unreadable {
+    decode_photo_within(&read_image_file(path)?, path, limits)
+}
+
+/// An image file read as RGBA8 (a texture, a bitmap to project) within `limits`.
+pub fn load_rgba_within(path: &Path, limits: &PhotoLimits) -> Result<RgbaImage, PhotoError> {
+    decode_rgba_within(&read_image_file(path)?, path, limits)
+}
+
+/// The bytes of an image file. Only regular files are read: a path a model or script names
+/// could be a device (`/dev/zero` never ends) or a pipe (never answers).
+fn read_image_file(path: &Path) -> Result<Vec<u8>, PhotoError> {
+    let unreadable = |source| PhotoError::Unreadable {
         path: path.to_path_buf(),
         source,
-    })?;
-    decode_photo_within(&bytes, path, limits)
+    };
+    let meta = std::fs::metadata(path).map_err(unreadable)?;
+    if !meta.is_file() {
+        return Err(unreadable(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        )));
+    }
+    std::fs::read(path).map_err(unreadable)
 }
 
 /// Decodes an encoded photo held in memory; `path` names it in errors and in [`Photo::path`].
@@ -274,6 +304,18 @@ fn checked_decoder<'a>(
             width,
             height,
             max_pixels: limits.max_pixels,
+        });
+    }
+    // The decoders allocate the whole image before reading its data: a header must not
+    // claim more pixels than the file can encode. Deflate expands at most 1032:1 and a PNG
+    // packs up to 8 one-bit pixels per byte, so no PNG decodes to more than about 8300
+    // times its size (JPEG, a few bits per 8x8 block, stays below 1000:1).
+    if decoder.total_bytes() > MAX_EXPANSION * bytes.len() as u64 + (64 << 10) {
+        return Err(PhotoError::Truncated {
+            path: path.to_path_buf(),
+            width,
+            height,
+            bytes: bytes.len() as u64,
         });
     }
     Ok(decoder)

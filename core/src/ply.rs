@@ -1803,7 +1803,8 @@ fn min_item_bytes(e: &ElementDef, format: PlyFormat) -> u64 {
 
 /// Reads a mesh (or a point cloud: no face element) from a PLY file. Polygons are
 /// fan-triangulated (per-face attributes repeat on each triangle). Rejects NaN or infinite
-/// coordinates, naming the vertex and its line or byte offset.
+/// positions, normals and texture coordinates, naming the vertex or face and its line or
+/// byte offset: what it returns passes [`Mesh::validate`].
 pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
     let path = path.as_ref();
     let mut r = PlyReader::open(path)?;
@@ -1850,6 +1851,24 @@ pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
                     ),
                 ));
             }
+            // Normals and texture coordinates too: the mesh must pass `Mesh::validate`, or
+            // it cannot be written back (found by the ply_bytes fuzz target: NaN normals).
+            let normal_ok = v.normal.is_none_or(|n| n.iter().all(|x| x.is_finite()));
+            let uv_ok = v.uv.is_none_or(|uv| uv.iter().all(|x| x.is_finite()));
+            if !(normal_ok && uv_ok) {
+                return Err(located(
+                    path,
+                    r.last_location(),
+                    format!(
+                        "vertex {index}: {} is not finite",
+                        if normal_ok {
+                            "texture coordinate"
+                        } else {
+                            "normal"
+                        }
+                    ),
+                ));
+            }
             mesh.positions.push(p);
             if let (Some(ns), Some(n)) = (normals.as_mut(), v.normal) {
                 ns.push(n);
@@ -1874,6 +1893,13 @@ pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
                     path,
                     r.last_location(),
                     format!("face {index}: {n} vertex indices; a face needs at least 3"),
+                ));
+            }
+            if face.texcoords.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(located(
+                    path,
+                    r.last_location(),
+                    format!("face {index}: a texture coordinate is not finite"),
                 ));
             }
             for k in 1..n - 1 {

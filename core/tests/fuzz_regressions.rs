@@ -33,3 +33,56 @@ fn ply_elements_without_properties_are_skipped_at_once() {
     let r = PlyReader::open(&path).unwrap();
     within(Duration::from_secs(1), || r.finish()).unwrap();
 }
+
+/// ply_bytes, crash: a binary PLY whose vertex normal is NaN (an Open3D cloud with one value
+/// changed). read_mesh checked positions only and returned a mesh `Mesh::validate` refuses,
+/// which no writer could store. Now refused with the vertex named.
+#[test]
+fn ply_non_finite_normals_are_refused_with_the_vertex_named() {
+    let path = input("ply_nan_normal.ply");
+    let e = read_mesh(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("ply_nan_normal.ply") && e.contains("vertex 2") && e.contains("normal"),
+        "{e}"
+    );
+}
+
+/// middlebury, crash: a view name holding vertical tabs (`temp.\v\vleSR0001.png`). The reader
+/// splits at ASCII whitespace only and accepted it; `write_par` then refused to store it, so
+/// a model read could not be written back. Now refused when read, with the line named.
+#[test]
+fn par_names_with_whitespace_or_control_characters_are_refused() {
+    let path = input("par_name_vertical_tab.txt");
+    let e = fresco_core::middlebury::read_par(&path, 640, 480)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("par_name_vertical_tab.txt")
+            && e.contains("line 2")
+            && e.contains("whitespace or a control character"),
+        "{e}"
+    );
+}
+
+/// obj, crash: a material library with a `Kd` line of no numbers; tobj 4.0.5 indexes the
+/// missing values and panics. The library is now checked first and reported as unreadable:
+/// the OBJ is read without materials, as for any library that cannot be read.
+#[test]
+fn obj_with_a_colour_line_short_of_numbers_reads_without_its_materials() {
+    let path = input("obj_short_colour.obj");
+    let scene = within(Duration::from_secs(1), || fresco_core::obj::read_obj(&path)).unwrap();
+    assert_eq!(scene.mesh.faces.len(), 1);
+    assert!(scene.materials.is_empty());
+}
+
+/// obj (found while fixing the above): `mtllib /dev/zero` made tobj read a device that never
+/// ends. Only regular files are read as material libraries.
+#[cfg(unix)]
+#[test]
+fn obj_naming_a_device_as_material_library_does_not_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("device.obj");
+    std::fs::write(&path, "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let scene = within(Duration::from_secs(1), || fresco_core::obj::read_obj(&path)).unwrap();
+    assert_eq!(scene.mesh.faces.len(), 1);
+}
