@@ -7,6 +7,7 @@
 mod common;
 
 #[path = "../../tests/src/viewer.rs"]
+#[allow(dead_code)]
 mod viewer;
 
 use std::io::{BufRead, BufReader, Read, Write};

@@ -247,25 +247,64 @@ pub fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// The world's "up": opposite the mean of the cameras' image-down (+y) axes.
+/// The world's "up" for a view from above. Cameras around an object lie near a plane (a ring,
+/// a hemisphere's rows): its normal, from the smallest principal axis of the camera centres,
+/// is up, signed to agree with the cameras' mean image-up axis. When the centres are not
+/// planar (fewer than 3, or a line), the mean image-up axis alone (photos taken upright).
 fn up_direction(rec: &Reconstruction) -> Vector3<f64> {
-    let mut down = Vector3::zeros();
+    let mut image_up = Vector3::zeros();
+    let mut centres = Vec::new();
     for im in rec.images.values() {
-        down += im
+        image_up -= im
             .cam_from_world
             .0
             .rotation
             .inverse_transform_vector(&Vector3::y());
+        centres.push(im.cam_from_world.center().coords);
     }
-    let up = -down;
-    if up.norm() > 1e-9 {
-        up.normalize()
+    let fallback = if image_up.norm() > 1e-9 {
+        image_up.normalize()
     } else {
         Vector3::z()
+    };
+    if centres.len() < 3 {
+        return fallback;
+    }
+    let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
+    let mut cov = fresco_core::nalgebra::Matrix3::zeros();
+    for c in &centres {
+        let d = c - mean;
+        cov += d * d.transpose();
+    }
+    let eig = cov.symmetric_eigen();
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let (small, middle) = (eig.eigenvalues[order[0]], eig.eigenvalues[order[1]]);
+    // Planar: the thinnest spread is well below the other two (a line has two small ones).
+    if middle <= 1e-12 || small > 0.25 * middle {
+        return fallback;
+    }
+    let normal: Vector3<f64> = eig.eigenvectors.column(order[0]).into_owned();
+    // Cameras look down at the object more often than up: the mean viewing direction
+    // points against up; without a clear tilt, the image-up axes decide.
+    let look: Vector3<f64> = rec
+        .images
+        .values()
+        .map(|im| im.cam_from_world.viewing_direction())
+        .sum();
+    let sign_hint = if look.dot(&normal).abs() > 1e-3 * look.norm().max(1e-12) {
+        -look
+    } else {
+        fallback
+    };
+    if normal.dot(&sign_hint) >= 0.0 {
+        normal
+    } else {
+        -normal
     }
 }
 
-/// Cameras and sparse points seen from above (along the cameras' mean up direction), as SVG:
+/// Cameras and sparse points seen from above (along [`up_direction`]), as SVG:
 /// points in their colours, each camera a triangle pointing where it looks.
 pub fn top_view(rec: &Reconstruction) -> Option<String> {
     if rec.images.is_empty() {

@@ -331,7 +331,7 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
         out.push_str("<h2>Cameras and sparse points</h2>");
         if let Some(svg) = figures::top_view(rec) {
             let caption = format!(
-                "Seen from above (along the cameras' mean up direction): {} cameras (yellow, pointing where they look), {} points in their colours.",
+                "Seen from above (normal of the cameras' plane): {} cameras (yellow, pointing where they look), {} points in their colours.",
                 rec.images.len(),
                 rec.points3d.len()
             );
@@ -377,7 +377,16 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
             if let Some(st) = stage_summary(s, "unwrap")
                 && let Some(m) = st.summary.get("metrics")
             {
-                let _ = write!(caption, "; metrics {m}");
+                let f = |k: &str| m.get(k).and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
+                let _ = write!(
+                    caption,
+                    ": {} charts, L2 stretch {:.3}, angle distortion {:.2} deg, {:.0}% of the atlas used, {} flipped triangles",
+                    f("charts"),
+                    f("l2_stretch"),
+                    f("angle_distortion_deg"),
+                    100.0 * f("utilisation"),
+                    f("flipped")
+                );
             }
             figure(
                 o,

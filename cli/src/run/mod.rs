@@ -385,6 +385,7 @@ pub fn run(args: RunArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
             "--holdout: no held-out PSNR yet: dense stereo and the texture stage, which keep the held-out photos out, are not built; the photos were used by sfm only".into(),
         );
     }
+    summary.seconds_total = start.elapsed().as_secs_f64();
     match crate::report::write_report(&plan, &summary) {
         Ok(path) => summary.report = Some(path),
         Err(e) => summary.warnings.push(format!("report: not written: {e:#}")),
