@@ -19,6 +19,7 @@
 pub mod bspline;
 pub mod cleanup;
 pub mod decimate;
+pub mod dense;
 pub mod isosurface;
 pub mod metrics;
 pub mod normals;
