@@ -17,6 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dataset = PathBuf::from(&args[1]);
     let out = PathBuf::from(&args[2]);
     let masks = args.iter().any(|a| a == "--masks");
+    let eval_only = args.iter().any(|a| a == "--eval-only");
     let rec = colmap::read_model(&dataset.join("sparse"))?;
     let images = ImageSource::Folder(dataset.join("images"));
     let mask_dir = dataset.join("masks");
@@ -26,21 +27,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         masks: masks.then_some(mask_dir.as_path()),
     };
     let t = Instant::now();
-    let summary = densify(&inputs, &DenseConfig::default(), &out, &NoProgress)?;
-    let seconds = t.elapsed().as_secs_f64();
-    for v in &summary.views {
+    if !eval_only {
+        let summary = densify(&inputs, &DenseConfig::default(), &out, &NoProgress)?;
+        let seconds = t.elapsed().as_secs_f64();
+        for v in &summary.views {
+            println!(
+                "{} valid {:.3} {:.2}s sources {:?}",
+                v.name, v.valid_fraction, v.seconds, v.sources
+            );
+        }
         println!(
-            "{} valid {:.3} {:.2}s sources {:?}",
-            v.name, v.valid_fraction, v.seconds, v.sources
+            "undistort {:.2}s patch match {:.2}s fusion {:.2}s total {seconds:.2}s, {} points",
+            summary.seconds_undistort,
+            summary.seconds_patch_match,
+            summary.seconds_fusion,
+            summary.fusion.points
         );
     }
-    println!(
-        "undistort {:.2}s patch match {:.2}s fusion {:.2}s total {seconds:.2}s, {} points",
-        summary.seconds_undistort,
-        summary.seconds_patch_match,
-        summary.seconds_fusion,
-        summary.fusion.points
-    );
     let mesh = read_mesh(dataset.join("mesh.ply"))?;
     let mut reader = PlyReader::open(out.join("fused.ply"))?;
     let mut cloud = Vec::new();

@@ -60,6 +60,9 @@ pub struct CloudQuality {
     pub seen_fraction: f64,
     pub threshold: f64,
     pub min_views: usize,
+    /// Completeness by the number of cameras that see the surface: `(views, area fraction
+    /// of the seen surface, completeness)` for 2, 3, 4, 5-8 and 9+ views.
+    pub by_views: Vec<(String, f64, f64)>,
 }
 
 /// For each sample of `points` (with `normals` of their faces), the number of `views`
@@ -134,16 +137,51 @@ pub fn evaluate_cloud(
     let index = PointIndex3::build(cloud).map_err(MetricsError::from)?;
     let nearest = index.nearest_batch(&samples.points);
     let (mut seen_area, mut total_area, mut covered) = (0.0, 0.0, 0.0);
+    let buckets = [(2, 2), (3, 3), (4, 4), (5, 8), (9, u32::MAX)];
+    let mut bucket_area = [0.0f64; 5];
+    let mut bucket_covered = [0.0f64; 5];
     for (i, w) in samples.weight.iter().enumerate() {
         total_area += w;
         if (seen[i] as usize) < cfg.min_views {
             continue;
         }
         seen_area += w;
-        if nearest[i].is_some_and(|n| n.distance <= threshold) {
+        let hit = nearest[i].is_some_and(|n| n.distance <= threshold);
+        if hit {
             covered += w;
         }
+        if let Some(b) = buckets
+            .iter()
+            .position(|&(lo, hi)| (lo..=hi).contains(&seen[i]))
+        {
+            bucket_area[b] += w;
+            if hit {
+                bucket_covered[b] += w;
+            }
+        }
     }
+    let by_views = buckets
+        .iter()
+        .enumerate()
+        .map(|(b, &(lo, hi))| {
+            let name = match (lo, hi) {
+                (l, h) if l == h => format!("{l}"),
+                (l, u32::MAX) => format!("{l}+"),
+                (l, h) => format!("{l}-{h}"),
+            };
+            let share = if seen_area > 0.0 {
+                bucket_area[b] / seen_area
+            } else {
+                0.0
+            };
+            let done = if bucket_area[b] > 0.0 {
+                bucket_covered[b] / bucket_area[b]
+            } else {
+                0.0
+            };
+            (name, share, done)
+        })
+        .collect();
     Ok(CloudQuality {
         points: cloud.len(),
         diagonal,
@@ -163,5 +201,6 @@ pub fn evaluate_cloud(
         },
         threshold: cfg.threshold,
         min_views: cfg.min_views,
+        by_views,
     })
 }

@@ -20,6 +20,7 @@ pub mod depth_map_file;
 pub mod evaluate;
 pub mod fusion;
 pub mod patch_match;
+pub mod reference_poses;
 pub mod undistort;
 pub mod view_selection;
 
@@ -38,6 +39,7 @@ use serde::Serialize;
 pub use evaluate::{CloudQuality, EvalConfig, evaluate_cloud};
 pub use fusion::{FusionConfig, FusionSummary};
 pub use patch_match::{DepthMap, PatchMatchConfig};
+pub use reference_poses::with_reference_poses;
 pub use view_selection::ViewSelectionConfig;
 
 use patch_match::{Intrinsics, Problem, Source, patch_match};
