@@ -4,6 +4,7 @@
 //! Every subcommand returns a JSON summary; `--json` prints it on stdout, otherwise a short
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
+mod dense;
 mod eval;
 mod features;
 mod matching;
@@ -54,6 +55,9 @@ enum Command {
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
     /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
     Synth(synth::SynthArgs),
+    /// Depth maps of every registered photo and their fusion into <ws>/dense/fused.ply
+    /// (PatchMatch multi-view stereo on the CPU).
+    Dense(dense::DenseArgs),
     /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
     /// density trimming, clean-up and decimation.
     Mesh(mesh::MeshArgs),
@@ -99,6 +103,7 @@ fn main() -> ExitCode {
         Command::View(args) => view::run(args, &ctx),
         Command::Synth(args) => synth::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
+        Command::Dense(args) => dense::run(args, &ctx),
         Command::Mesh(args) => mesh::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),

@@ -13,6 +13,7 @@
 //! - [`mesh_distance`]: mesh against mesh (the second is the reference).
 //! - [`point_set_distance`]: point set against point set (nearest neighbours, no surfaces).
 //! - [`surface_samples`]: the samples themselves.
+//! - [`point_to_mesh_distances`]: distance of each query point to a mesh's surface.
 
 use fresco_core::Mesh;
 use fresco_core::knn::{KnnError, PointIndex3};
@@ -185,6 +186,21 @@ pub fn point_set_distance(
         f_threshold * diagonal,
         diagonal,
     ))
+}
+
+/// Distance of each of `queries` to the surface of `mesh`, through about `samples` surface
+/// samples (see the module documentation).
+pub fn point_to_mesh_distances(
+    queries: &[Point3<f64>],
+    mesh: &Mesh,
+    samples: usize,
+) -> Result<Vec<f64>, MetricsError> {
+    let s = surface_samples(mesh, samples);
+    if s.points.is_empty() {
+        return Err(MetricsError::Empty("the mesh"));
+    }
+    let index = PointIndex3::build(&s.points)?;
+    Ok(to_mesh(queries, mesh, &s, &index))
 }
 
 /// Distance of each query point to the surface of `mesh`, whose samples are `samples`

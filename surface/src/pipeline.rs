@@ -9,17 +9,21 @@
 //! 4. density trimming (`trim.rs`), if a trim value is set;
 //! 5. clean-up (`cleanup.rs`): small islands, degenerate faces, non-manifold repair;
 //! 6. quadric decimation (`decimate.rs`) to the face budget, if the mesh is larger;
+//! 7. orientation (`orientation.rs`): when the cameras that photographed the surface are
+//!    given, every component they see more from behind than from the front is flipped, so
+//!    that meshes made from photos face their cameras;
 //!
 //! and returns the mesh with vertex normals and a report of every stage.
 
 use std::time::Instant;
 
 use fresco_core::nalgebra::{Point3, Vector3};
-use fresco_core::{Mesh, Progress};
+use fresco_core::{CamFromWorld, Camera, Mesh, Progress};
 
 use crate::cleanup::{CleanupConfig, CleanupReport, cleanup};
 use crate::decimate::{DecimateConfig, DecimateError, DecimateReport, decimate};
 use crate::normals::{NormalConfig, NormalError, estimate_normals, orient_normals};
+use crate::orientation::{OrientationReport, face_the_cameras};
 use crate::poisson::{PoissonConfig, PoissonError, reconstruct};
 use crate::trim::{TrimConfig, TrimError, TrimReport, trim_by_density};
 
@@ -38,6 +42,9 @@ pub struct MeshConfig {
     pub cleanup: CleanupConfig,
     /// Face budget; `None` keeps every face.
     pub target_faces: Option<usize>,
+    /// The cameras (intrinsics and pose) the points were photographed from; when given, the
+    /// mesh is oriented to face them (step 7). Default none.
+    pub cameras: Vec<(Camera, CamFromWorld)>,
 }
 
 impl Default for MeshConfig {
@@ -53,6 +60,7 @@ impl Default for MeshConfig {
             }),
             cleanup: CleanupConfig::default(),
             target_faces: Some(200_000),
+            cameras: Vec::new(),
         }
     }
 }
@@ -74,6 +82,8 @@ pub struct MeshReport {
     pub trim: Option<TrimReport>,
     pub cleanup: CleanupReport,
     pub decimate: Option<DecimateReport>,
+    /// Step 7, when cameras were given.
+    pub orientation: Option<OrientationReport>,
     pub faces: usize,
     pub vertices: usize,
     pub seconds_normals: f64,
@@ -81,6 +91,7 @@ pub struct MeshReport {
     pub seconds_trim: f64,
     pub seconds_cleanup: f64,
     pub seconds_decimate: f64,
+    pub seconds_orientation: f64,
 }
 
 /// Why no mesh could be made.
@@ -107,6 +118,8 @@ pub enum MeshFromPointsError {
     Trim(#[from] TrimError),
     #[error("decimation: {0}")]
     Decimate(#[from] DecimateError),
+    #[error("orienting the mesh towards its cameras: {0}")]
+    Orientation(#[from] fresco_core::raster::RasterError),
     #[error(
         "nothing is left after trimming at density {0}: lower --trim (or raise --trim-below-median)"
     )]
@@ -213,6 +226,14 @@ pub fn mesh_from_points(
         report.decimate = Some(r);
     }
     report.seconds_decimate = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    if !cfg.cameras.is_empty() {
+        progress.begin("orientation", 0);
+        report.orientation = Some(face_the_cameras(&mut mesh, &cfg.cameras)?);
+        progress.end();
+    }
+    report.seconds_orientation = t.elapsed().as_secs_f64();
     mesh.compute_vertex_normals();
     report.faces = mesh.faces.len();
     report.vertices = mesh.positions.len();
