@@ -21,10 +21,14 @@ fn main() {
         .map_or(SceneConfig::default().detail, |s| s.parse().unwrap());
     let jitter: f64 = args.get(3).map_or(0.08, |s| s.parse().unwrap());
     let dir = tempfile::tempdir().unwrap();
+    let var = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let width = var("WIDTH").map_or(640, |w| w as u32);
     let cfg = SceneConfig {
         shape,
         detail,
         exposure_jitter: jitter,
+        width,
+        height: width * 3 / 4,
         ..SceneConfig::default()
     };
     let t = Instant::now();
@@ -38,6 +42,10 @@ fn main() {
     let held = ["view_0005.png", "view_0017.png"];
     let config = TextureConfig {
         exclude_images: held.iter().map(|s| s.to_string()).collect(),
+        texels_per_pixel: var("TPP").unwrap_or(1.0),
+        quality_weight: var("QW").unwrap_or(TextureConfig::default().quality_weight),
+        outlier_rejection: var("NOOUT").is_none(),
+        exposure_gains: var("NOGAIN").is_none(),
         ..TextureConfig::default()
     };
     let inputs = TextureInputs {
@@ -79,10 +87,29 @@ fn main() {
             let r = render_textured(m, cam, &im.cam_from_world, cfg.supersample).unwrap();
             let cm = comparison_mask(&r, Some(&mask));
             let c = compare_to_photo(&r.image, &photo, &cm);
+            let cmp_gains = c.gains;
+            fn c_gain(c: &usize, g: &[f64; 3]) -> f64 {
+                g[*c]
+            }
             println!(
                 "  {h} {name:8} psnr {:.2} gain-fitted {:.2} ssim {:.4} 1-ncc {:.5} px {}",
                 c.psnr, c.psnr_gain, c.ssim_gain, c.one_minus_ncc, c.pixels
             );
+            if std::env::var("SAVE").is_ok() && name == "texture" {
+                let diff = image::RgbImage::from_fn(photo.width(), photo.height(), |x, y| {
+                    let (a, b) = (r.image.get_pixel(x, y), photo.get_pixel(x, y));
+                    let k = (y * photo.width() + x) as usize;
+                    if !cm[k] {
+                        return image::Rgb([0, 0, 60]);
+                    }
+                    image::Rgb([0, 1, 2].map(|c| {
+                        ((a[c] as f64 * c_gain(&c, &cmp_gains) - b[c] as f64).abs() * 6.0)
+                            .min(255.0) as u8
+                    }))
+                });
+                diff.save(Path::new("/tmp").join(format!("{}_{h}_diff.png", shape.name())))
+                    .unwrap();
+            }
             if std::env::var("SAVE").is_ok() {
                 r.image
                     .save(Path::new("/tmp").join(format!("{}_{h}_{name}.png", shape.name())))

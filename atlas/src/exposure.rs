@@ -1,9 +1,9 @@
 //! Photometric consistency before fusion: one gain per view and colour channel (exposure and
 //! white balance), fitted on what the views see in common.
 //!
-//! Each face seen by several views gives one sample per view: the view's mean colour over the
-//! face (a pyramid lookup at the face's centroid at the level where one pyramid pixel covers
-//! the face). With `x_v = ln g_v` and `l_fv = ln(colour)`, the gains minimise
+//! Each face seen by several views gives one sample per view: the view's mean colour at four
+//! points of the face (centroid and midpoints towards the corners) where the view sees them
+//! (`View::sample`: depth-tested, inside the mask), from the photo's 2x2-averaged level. With `x_v = ln g_v` and `l_fv = ln(colour)`, the gains minimise
 //! `sum_f sum_v (x_v + l_fv - m_f)^2` over the gains and the unknown true face colours `m_f`,
 //! solved exactly (the consensus eliminated, a small dense system in the gains), normalised
 //! so that the gains' geometric mean is 1. Samples more than `ROBUST_LOG` away from their
@@ -11,18 +11,21 @@
 //! and the system solved again. Dark and saturated samples are not used.
 
 use fresco_core::Mesh;
-use fresco_core::nalgebra::{DMatrix, DVector, Point3};
+use fresco_core::nalgebra::{self, DMatrix, DVector, Point3};
 use rayon::prelude::*;
 
-use crate::views::{ViewSet, trilinear};
+use crate::views::ViewSet;
 
 /// Log-colour residual beyond which a sample is an outlier (about 20%).
 const ROBUST_LOG: f64 = 0.18;
+/// Pyramid level of the samples: 2x2-pixel averages, robust to sub-pixel misregistration
+/// without mixing in what surrounds the face.
+const SAMPLE_LEVEL: f64 = 1.0;
 /// Faces sampled at most (evenly spread): plenty for a few dozen unknowns.
 const MAX_FACES: usize = 100_000;
 
 /// Gains per view and channel; photo colour times gain is the corrected colour.
-pub(crate) fn fit_gains(mesh: &Mesh, set: &ViewSet) -> Vec<[f32; 3]> {
+pub(crate) fn fit_gains(mesh: &Mesh, set: &ViewSet, tolerance: f64) -> Vec<[f32; 3]> {
     let nv = set.views.len();
     let nf = mesh.faces.len();
     let stride = nf.div_ceil(MAX_FACES).max(1);
@@ -33,25 +36,35 @@ pub(crate) fn fit_gains(mesh: &Mesh, set: &ViewSet) -> Vec<[f32; 3]> {
         .map(|f| {
             let [a, b, c] = mesh.triangle(f);
             let centroid = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+            // The centroid and the midpoints towards the corners.
+            let points = [
+                centroid,
+                nalgebra::center(&centroid, &a),
+                nalgebra::center(&centroid, &b),
+                nalgebra::center(&centroid, &c),
+            ];
+            let normal = mesh.face_normal(f);
             let mut out = Vec::new();
             for v in 0..nv {
                 if set.quality(f, v) <= 0.0 {
                     continue;
                 }
                 let view = &set.views[v];
-                let pc = view.pose.0.transform_point(&centroid);
-                let Some(px) = view.camera.image_from_cam(&pc) else {
-                    continue;
-                };
-                if px.x < 0.0
-                    || px.y < 0.0
-                    || px.x >= view.width() as f64
-                    || px.y >= view.height() as f64
-                {
+                let to_cam = view.centre - centroid;
+                let cos = normal.dot(&to_cam) / to_cam.norm().max(1e-300);
+                let (mut sum, mut n) = ([0f32; 3], 0);
+                for p in &points {
+                    if let Some(c) = view.sample(p, cos, tolerance, SAMPLE_LEVEL) {
+                        for k in 0..3 {
+                            sum[k] += c[k];
+                        }
+                        n += 1;
+                    }
+                }
+                if n == 0 {
                     continue;
                 }
-                let level = (0.5 * (set.projected_area(f, v) as f64).max(1.0).log2()).max(0.0);
-                let col = trilinear(&view.levels, level, px.x, px.y);
+                let col = sum.map(|s| s / n as f32);
                 if col.iter().any(|&c| !(0.03..=0.97).contains(&c)) {
                     continue;
                 }

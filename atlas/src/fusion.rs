@@ -15,7 +15,7 @@
 //! least three views, a view whose gain-corrected colour is further from the per-channel
 //! median than `outlier_sigmas` robust standard deviations (1.4826 MAD of the views'
 //! distances) and than `outlier_min_difference` is invalid there; the rejection is dilated by
-//! one texel so that the fringe of a highlight goes with it.
+//! two texels so that the fringe of a highlight goes with it.
 
 use crate::TextureConfig;
 use crate::graph_cut::{Cover, SeamProblem};
@@ -202,8 +202,9 @@ fn reject_outliers(grid: &ChartGrid, texels: &mut [ViewTexels], config: &Texture
                 if !t.valid[i] {
                     continue;
                 }
-                let hit = (y.saturating_sub(1)..(y + 2).min(grid.height)).any(|yy| {
-                    (x.saturating_sub(1)..(x + 2).min(grid.width))
+                let r = OUTLIER_DILATION;
+                let hit = (y.saturating_sub(r)..(y + r + 1).min(grid.height)).any(|yy| {
+                    (x.saturating_sub(r)..(x + r + 1).min(grid.width))
                         .any(|xx| reject[(yy * grid.width + xx) * nk + k])
                 });
                 if hit {
@@ -215,6 +216,10 @@ fn reject_outliers(grid: &ChartGrid, texels: &mut [ViewTexels], config: &Texture
     }
     count
 }
+
+/// Texels by which a rejection spreads: the photo's bilinear and mip footprints carry an
+/// outlier's colour about this far.
+const OUTLIER_DILATION: usize = 2;
 
 fn median_of(v: &mut [f32]) -> f32 {
     v.sort_by(f32::total_cmp);

@@ -146,7 +146,7 @@ pub fn texture(
 
     let t = Instant::now();
     let gains = if config.exposure_gains {
-        crate::exposure::fit_gains(&mesh, &set)
+        crate::exposure::fit_gains(&mesh, &set, config.depth_tolerance)
     } else {
         vec![[1.0; 3]; set.views.len()]
     };

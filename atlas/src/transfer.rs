@@ -19,7 +19,7 @@ use fresco_core::Mesh;
 use fresco_core::mesh::Uv;
 use fresco_core::nalgebra::Point3;
 
-use crate::views::{ViewSet, depth_tolerance, trilinear};
+use crate::views::ViewSet;
 
 /// No face at this texel.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -195,8 +195,6 @@ pub(crate) fn sample_view(
     relative_tolerance: f64,
 ) -> ViewTexels {
     let view = &set.views[v];
-    let (w, h) = (view.width(), view.height());
-    let focal = view.focal();
     // Per local face: pyramid level and cosine of the viewing angle, or None if unseen.
     let per_face: Vec<Option<(f64, f64)>> = grid
         .faces
@@ -228,32 +226,10 @@ pub(crate) fn sample_view(
             continue;
         };
         let p = surface_point(mesh, grid.faces[local as usize], &grid.bary[i]);
-        let pc = view.pose.0.transform_point(&p);
-        if pc.z <= 0.0 {
-            continue;
+        if let Some(c) = view.sample(&p, cos, relative_tolerance, level) {
+            colour[i] = c;
+            valid[i] = true;
         }
-        let Some(px) = view.camera.image_from_cam(&pc) else {
-            continue;
-        };
-        if !(px.x >= 0.5 && px.y >= 0.5 && px.x <= w as f64 - 0.5 && px.y <= h as f64 - 0.5) {
-            continue;
-        }
-        let tol = depth_tolerance(pc.z, cos, focal, relative_tolerance);
-        let xa = ((px.x - 0.5).floor() as usize).min(w - 1);
-        let ya = ((px.y - 0.5).floor() as usize).min(h - 1);
-        let (xb, yb) = ((xa + 1).min(w - 1), (ya + 1).min(h - 1));
-        let seen = [(xa, ya), (xb, ya), (xa, yb), (xb, yb)]
-            .iter()
-            .all(|&(x, y)| {
-                let k = y * w + x;
-                let d = view.depth[k] as f64;
-                (d - pc.z).abs() <= tol && view.mask.as_ref().is_none_or(|m| m[k])
-            });
-        if !seen {
-            continue;
-        }
-        colour[i] = trilinear(&view.levels, level, px.x, px.y);
-        valid[i] = true;
     }
     ViewTexels {
         view: v,

@@ -68,6 +68,40 @@ impl View {
     pub fn focal(&self) -> f64 {
         0.5 * (self.camera.focal_x() + self.camera.focal_y())
     }
+
+    /// The colour of surface point `p` (seen at `cos` from its normal) in this photo at
+    /// pyramid `level`, when it is seen: in front of the camera, inside the photo, the four
+    /// pixels around its projection showing the same surface (depth within tolerance: no
+    /// occluder, no silhouette blending) and inside the mask.
+    pub fn sample(
+        &self,
+        p: &Point3<f64>,
+        cos: f64,
+        relative_tolerance: f64,
+        level: f64,
+    ) -> Option<[f32; 3]> {
+        let (w, h) = (self.width(), self.height());
+        let pc = self.pose.0.transform_point(p);
+        if pc.z <= 0.0 {
+            return None;
+        }
+        let px = self.camera.image_from_cam(&pc)?;
+        if !(px.x >= 0.5 && px.y >= 0.5 && px.x <= w as f64 - 0.5 && px.y <= h as f64 - 0.5) {
+            return None;
+        }
+        let tol = depth_tolerance(pc.z, cos, self.focal(), relative_tolerance);
+        let xa = ((px.x - 0.5).floor() as usize).min(w - 1);
+        let ya = ((px.y - 0.5).floor() as usize).min(h - 1);
+        let (xb, yb) = ((xa + 1).min(w - 1), (ya + 1).min(h - 1));
+        let seen = [(xa, ya), (xb, ya), (xa, yb), (xb, yb)]
+            .iter()
+            .all(|&(x, y)| {
+                let k = y * w + x;
+                let d = self.depth[k] as f64;
+                (d - pc.z).abs() <= tol && self.mask.as_ref().is_none_or(|m| m[k])
+            });
+        seen.then(|| trilinear(&self.levels, level, px.x, px.y))
+    }
 }
 
 /// The usable photos and what they see.
