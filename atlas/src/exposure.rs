@@ -3,7 +3,8 @@
 //!
 //! Each face seen by several views gives one sample per view: the view's mean colour at four
 //! points of the face (centroid and midpoints towards the corners) where the view sees them
-//! (`View::sample`: depth-tested, inside the mask), from the photo's 2x2-averaged level. With `x_v = ln g_v` and `l_fv = ln(colour)`, the gains minimise
+//! (`View::sample`: depth-tested, inside the mask), from the photo's 2x2-averaged level.
+//! With `x_v = ln g_v` and `l_fv = ln(colour)`, the gains minimise
 //! `sum_f sum_v (x_v + l_fv - m_f)^2` over the gains and the unknown true face colours `m_f`,
 //! solved exactly (the consensus eliminated, a small dense system in the gains), normalised
 //! so that the gains' geometric mean is 1. Samples more than `ROBUST_LOG` away from their
@@ -74,14 +75,10 @@ pub(crate) fn fit_gains(mesh: &Mesh, set: &ViewSet, tolerance: f64) -> Vec<[f32;
         })
         .filter(|s| s.len() >= 2)
         .collect();
-    let mut gains = vec![[1f32; 3]; nv];
-    for ch in 0..3 {
-        let x = solve_channel(&samples, nv, ch);
-        for v in 0..nv {
-            gains[v][ch] = x[v].exp() as f32;
-        }
-    }
-    gains
+    let x: [Vec<f64>; 3] = [0, 1, 2].map(|ch| solve_channel(&samples, nv, ch));
+    (0..nv)
+        .map(|v| [0, 1, 2].map(|ch| x[ch][v].exp() as f32))
+        .collect()
 }
 
 /// Log gains of one channel (module documentation): the consensus `m_f` eliminated, the

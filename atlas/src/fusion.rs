@@ -28,8 +28,7 @@ pub(crate) struct FusedChart {
     pub colour: Vec<[f32; 3]>,
     /// Index into the chart's views of the view each texel took, or `u16::MAX`.
     pub label: Vec<u16>,
-    /// Views whose texels survived, and texels rejected as outliers.
-    pub views_used: usize,
+    /// (texel, view) pairs rejected as outliers.
     pub outlier_texels: usize,
 }
 
@@ -136,16 +135,9 @@ pub(crate) fn fuse_chart(
             }
         }
     }
-    let mut used = vec![false; nk];
-    for &l in &label {
-        if l != u16::MAX {
-            used[l as usize] = true;
-        }
-    }
     FusedChart {
         colour,
         label,
-        views_used: used.iter().filter(|&&u| u).count(),
         outlier_texels,
     }
 }

@@ -322,13 +322,14 @@ impl MaxFlow {
                     _ => arc.cap > 0.0,
                 };
                 let j = arc.head as usize;
-                if open && self.nodes[j].tree == tree && self.nodes[j].parent != NONE {
-                    if let Some(d) = self.origin_distance(j, time)
-                        && d < best_dist
-                    {
-                        best_dist = d;
-                        best_arc = a;
-                    }
+                if open
+                    && self.nodes[j].tree == tree
+                    && self.nodes[j].parent != NONE
+                    && let Some(d) = self.origin_distance(j, time)
+                    && d < best_dist
+                {
+                    best_dist = d;
+                    best_arc = a;
                 }
                 a = arc.next;
             }

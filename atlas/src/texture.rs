@@ -268,7 +268,7 @@ fn fuse_one_chart(
     gains: &[[f32; 3]],
     config: &TextureConfig,
 ) -> ChartOutput {
-    let grid = rasterise_chart(uvs, faces.to_vec(), atlas, size as usize);
+    let grid = rasterise_chart(uvs, faces.to_vec(), size as usize);
     let candidates: Vec<usize> = (0..set.views.len())
         .filter(|&v| faces.iter().any(|&f| set.quality(f as usize, v) > 0.0))
         .collect();
@@ -449,9 +449,9 @@ fn chart_faces(mesh: &Mesh) -> Vec<(u32, Vec<u32>)> {
         None => uv_islands(mesh),
     };
     let mut groups: std::collections::BTreeMap<(u32, u32), Vec<u32>> = Default::default();
-    for f in 0..nf {
+    for (f, &label) in labels.iter().enumerate().take(nf) {
         groups
-            .entry((atlas_of(f), labels[f]))
+            .entry((atlas_of(f), label))
             .or_default()
             .push(f as u32);
     }

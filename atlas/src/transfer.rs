@@ -28,7 +28,6 @@ pub(crate) const BORDER: usize = 2;
 
 /// A chart's rectangle of the atlas with the face and barycentrics of each texel.
 pub(crate) struct ChartGrid {
-    pub atlas: u32,
     pub x0: usize,
     pub y0: usize,
     pub width: usize,
@@ -44,13 +43,8 @@ pub(crate) struct ChartGrid {
     pub uv_area: Vec<f64>,
 }
 
-/// Rasterises the UV triangles of `faces` (all in atlas `atlas` of `size` texels).
-pub(crate) fn rasterise_chart(
-    uvs: &[[Uv; 3]],
-    faces: Vec<u32>,
-    atlas: u32,
-    size: usize,
-) -> ChartGrid {
+/// Rasterises the UV triangles of `faces` (all in one atlas of `size` texels).
+pub(crate) fn rasterise_chart(uvs: &[[Uv; 3]], faces: Vec<u32>, size: usize) -> ChartGrid {
     let s = size as f64;
     let tri = |f: u32| uvs[f as usize].map(|uv| [uv[0] as f64 * s, uv[1] as f64 * s]);
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -70,7 +64,6 @@ pub(crate) fn rasterise_chart(
     let (width, height) = (x1 - x0, y1 - y0);
     let n = width * height;
     let mut grid = ChartGrid {
-        atlas,
         x0,
         y0,
         width,
@@ -249,7 +242,7 @@ mod tests {
             [[0.25, 0.25], [0.75, 0.25], [0.75, 0.75]],
             [[0.25, 0.25], [0.75, 0.75], [0.25, 0.75]],
         ];
-        let g = rasterise_chart(&uvs, vec![0, 1], 0, 16);
+        let g = rasterise_chart(&uvs, vec![0, 1], 16);
         let mut inside = 0;
         for y in 0..g.height {
             for x in 0..g.width {

@@ -197,9 +197,8 @@ pub(crate) fn load_views(
                 }
             },
         };
-        if !maps.contains_key(&camera.id) {
-            let map = SampleMap::new(camera, 1)?;
-            maps.insert(camera.id, map);
+        if let std::collections::btree_map::Entry::Vacant(e) = maps.entry(camera.id) {
+            e.insert(SampleMap::new(camera, 1)?);
         }
         let map = &maps[&camera.id];
         let vis = raster::visibility(mesh, map, &image.cam_from_world, &RasterConfig::default())?;

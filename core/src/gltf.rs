@@ -619,15 +619,15 @@ mod read_tests {
         assert_eq!(textures, vec![texture]);
         assert_eq!(back.faces.len(), nf);
         let uvs = back.corner_uvs.as_ref().unwrap();
-        for f in 0..nf {
+        let written = mesh.corner_uvs.as_ref().unwrap();
+        for (f, (tri, uv)) in back.faces.iter().zip(uvs).enumerate() {
             for c in 0..3 {
-                let v = back.faces[f][c] as usize;
                 let w = mesh.faces[f][c] as usize;
                 assert_eq!(
-                    back.positions[v].cast::<f32>(),
+                    back.positions[tri[c] as usize].cast::<f32>(),
                     mesh.positions[w].cast::<f32>()
                 );
-                assert_eq!(uvs[f][c], mesh.corner_uvs.as_ref().unwrap()[f][c]);
+                assert_eq!(uv[c], written[f][c]);
             }
         }
         assert!(
