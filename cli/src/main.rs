@@ -16,6 +16,7 @@ mod report;
 mod run;
 mod sfm;
 mod synth;
+mod texture;
 mod unwrap;
 mod view;
 
@@ -75,6 +76,9 @@ enum Command {
     Features(features::FeaturesArgs),
     /// Charts, flattens and packs a mesh's texture coordinates (with a PNG of the atlas).
     Unwrap(unwrap::UnwrapArgs),
+    /// The texture atlas of a mesh from its photos: graph-cut view fusion, leveling, hole
+    /// filling; <ws>/texture/ and <ws>/model.glb.
+    Texture(texture::TextureArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -111,6 +115,7 @@ fn main() -> ExitCode {
         Command::Reconstruct(args) => reconstruct::run(args, &ctx),
         Command::Features(args) => features::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
+        Command::Texture(args) => texture::run(args, &ctx),
     };
     match result {
         Ok(summary) => {
