@@ -1,0 +1,1 @@
+//! Baking (to be written).
