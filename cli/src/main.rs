@@ -12,6 +12,7 @@ mod progress;
 mod pst;
 mod reconstruct;
 mod sfm;
+mod sprites;
 mod synth;
 mod unwrap;
 
@@ -64,6 +65,8 @@ enum Command {
     Features(features::FeaturesArgs),
     /// Charts, flattens and packs a mesh's texture coordinates (with a PNG of the atlas).
     Unwrap(unwrap::UnwrapArgs),
+    /// Texture sprites: render or bake a sprite scene, build octree textures.
+    Sprites(sprites::SpritesArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -97,6 +100,7 @@ fn main() -> ExitCode {
         Command::Reconstruct(args) => reconstruct::run(args, &ctx),
         Command::Features(args) => features::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
+        Command::Sprites(args) => sprites::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

@@ -12,7 +12,7 @@
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
 //! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
 //!   images through core's rasteriser with screen-space footprints; [`bake`]: the composite
-//!   texture written into a mesh's UV atlas.
+//!   texture written into a mesh's UV atlas; [`pipeline`]: the `fresco sprites` verbs.
 
 // Loops over the 3 axes index several arrays at once; iterator chains would read worse.
 #![allow(clippy::needless_range_loop)]
@@ -22,6 +22,7 @@ pub mod blend;
 pub mod error;
 pub mod octree;
 pub mod pattern;
+pub mod pipeline;
 pub mod render;
 pub mod scene;
 pub mod sprite;
