@@ -46,7 +46,7 @@ fn main() {
             &["gear_a", "gear_b"],
             8,
             BlendMode::Over,
-            (0.25, 0.45),
+            (0.4, 0.6),
         ),
         (
             "stars",
@@ -54,7 +54,7 @@ fn main() {
             &["star_a", "star_b", "star_c"],
             8,
             BlendMode::Over,
-            (0.15, 0.35),
+            (0.2, 0.45),
         ),
         (
             "blobby",
