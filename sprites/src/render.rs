@@ -227,3 +227,22 @@ pub fn orbit_camera(
         .map_err(|e| SpriteError::Input(e.to_string()))?;
     Ok((camera, pose))
 }
+
+/// Box-averages `img` by `s` in each direction (supersampled renders: render at `s` times the
+/// size with [`orbit_camera`], then average, as core's rasteriser does with sub-samples).
+pub fn downsample(img: &RgbImage, s: u32) -> RgbImage {
+    let (w, h) = (img.width() / s, img.height() / s);
+    RgbImage::from_fn(w, h, |x, y| {
+        let mut sum = [0u32; 3];
+        for j in 0..s {
+            for i in 0..s {
+                let p = img.get_pixel(x * s + i, y * s + j);
+                for k in 0..3 {
+                    sum[k] += p[k] as u32;
+                }
+            }
+        }
+        let n = s * s;
+        image::Rgb(sum.map(|v| ((v + n / 2) / n) as u8))
+    })
+}
