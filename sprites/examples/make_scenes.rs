@@ -21,7 +21,7 @@ fn main() {
     std::fs::create_dir_all(out.join("patterns")).unwrap();
     let mesh = fresco_datasets::shapes::blob(4, 7);
     fresco_core::ply::write_mesh(
-        &out.join("blob.ply"),
+        out.join("blob.ply"),
         &mesh,
         fresco_core::ply::PlyFormat::BinaryLittleEndian,
     )

@@ -129,7 +129,7 @@ fn contribution(s: &Prepared, patterns: &[Pattern], q: &Query, b: &Blend) -> Opt
         None => 1.0,
     };
     let pat = &patterns[s.pattern as usize];
-    let rho = match &q.footprint {
+    let rho2 = match &q.footprint {
         Some(f) => {
             let (w, h) = (pat.width() as f32, pat.height() as f32);
             let r = &s.inv;
@@ -137,11 +137,11 @@ fn contribution(s: &Prepared, patterns: &[Pattern], q: &Query, b: &Blend) -> Opt
                 |v: [f32; 3], row: usize| r[row][0] * v[0] + r[row][1] * v[1] + r[row][2] * v[2];
             let (ux, vx) = (d(f.dpdx, 0) * w, d(f.dpdx, 1) * h);
             let (uy, vy) = (d(f.dpdy, 0) * w, d(f.dpdy, 1) * h);
-            (ux * ux + vx * vx).max(uy * uy + vy * vy).sqrt()
+            (ux * ux + vx * vx).max(uy * uy + vy * vy)
         }
         None => 0.0,
     };
-    let c = pat.sample(u[0] + 0.5, 0.5 - u[1], rho);
+    let c = pat.sample_sq(u[0] + 0.5, 0.5 - u[1], rho2);
     Some([c[0] * att, c[1] * att, c[2] * att, c[3] * att])
 }
 

@@ -51,6 +51,16 @@ impl Pattern {
         self.levels[0].height
     }
 
+    /// [`Pattern::sample`] with the footprint squared (`rho2 = rho^2`): no square root or
+    /// logarithm when the pattern is magnified, the common case.
+    #[inline]
+    pub fn sample_sq(&self, s: f32, t: f32, rho2: f32) -> [f32; 4] {
+        if rho2 <= 1.0 || self.levels.len() == 1 {
+            return self.levels[0].bilinear(s, t);
+        }
+        self.sample(s, t, rho2.sqrt())
+    }
+
     /// Premultiplied RGBA at pattern coordinates (`s`, `t`) in [0, 1]^2 (s right, t down),
     /// filtered for a footprint of `rho` level-0 texels per screen pixel: bilinear in level 0
     /// when `rho <= 1`, else trilinear between the levels around `log2 rho`.

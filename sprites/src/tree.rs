@@ -505,8 +505,9 @@ impl SpriteTree {
     #[inline]
     pub fn sprites_at(&self, p: [f32; 3]) -> &[u32] {
         let mut f = [0u32; 3];
+        let inv = 1.0 / self.size;
         for a in 0..3 {
-            let t = (p[a] as f64 - self.min[a]) / self.size;
+            let t = (p[a] as f64 - self.min[a]) * inv;
             if !(0.0..1.0).contains(&t) {
                 return &[];
             }
@@ -546,8 +547,9 @@ impl SpriteTree {
     /// The reference evaluation: every sprite of `order` (from [`SpriteTree::user_order`]),
     /// no tree. Points outside the tree's cube are transparent, as for [`SpriteTree::lookup`].
     pub fn brute_force(&self, order: &[u32], q: &Query) -> [f32; 4] {
+        let inv = 1.0 / self.size;
         let inside = (0..3).all(|a| {
-            let t = (q.p[a] as f64 - self.min[a]) / self.size;
+            let t = (q.p[a] as f64 - self.min[a]) * inv;
             (0.0..1.0).contains(&t)
         });
         if !inside {

@@ -15,7 +15,7 @@ fn root() -> std::path::PathBuf {
 
 #[test]
 fn sprites_follow_the_rest_state_of_a_deformed_mesh() {
-    let mesh = fresco_core::ply::read_mesh(&root().join("blob.ply")).unwrap();
+    let mesh = fresco_core::ply::read_mesh(root().join("blob.ply")).unwrap();
     let scene = Scene::load(&root().join("gears.json")).unwrap();
     // Stretched 1.5x along x and moved: the orbit camera frames the new box.
     let mut moved = mesh.clone();
@@ -53,7 +53,7 @@ fn sprites_follow_the_rest_state_of_a_deformed_mesh() {
 
 #[test]
 fn every_example_scene_loads_and_builds() {
-    let mesh = fresco_core::ply::read_mesh(&root().join("blob.ply")).unwrap();
+    let mesh = fresco_core::ply::read_mesh(root().join("blob.ply")).unwrap();
     let bb = mesh.bounding_box().unwrap();
     for case in ["lapped", "gears", "stars", "blobby", "voronoi"] {
         let scene = Scene::load(&root().join(format!("{case}.json"))).unwrap();

@@ -14,7 +14,7 @@ use fresco_tests::gltf_validator;
 #[test]
 fn baked_glb_is_valid_and_renders_like_the_composite_texture() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/sprites");
-    let mut mesh = fresco_core::ply::read_mesh(&root.join("blob.ply")).unwrap();
+    let mut mesh = fresco_core::ply::read_mesh(root.join("blob.ply")).unwrap();
     let ucfg = fresco_param::UnwrapConfig {
         atlas_size: 2048,
         ..fresco_param::UnwrapConfig::default()
