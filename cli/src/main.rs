@@ -11,10 +11,13 @@ mod mesh;
 mod progress;
 mod pst;
 mod reconstruct;
+mod report;
+mod run;
 mod sfm;
 mod sprites;
 mod synth;
 mod unwrap;
+mod view;
 
 use std::process::ExitCode;
 
@@ -45,6 +48,10 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Photos to a textured model.glb in one go, resumable, with report.html and summary.json.
+    Run(run::RunArgs),
+    /// Serve a workspace's report and model viewer (or a .glb) on 127.0.0.1.
+    View(view::ViewArgs),
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
     /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
     Synth(synth::SynthArgs),
@@ -91,6 +98,8 @@ fn main() -> ExitCode {
         json: cli.json,
     };
     let result: anyhow::Result<serde_json::Value> = match cli.command {
+        Command::Run(args) => run::run(args, &ctx),
+        Command::View(args) => view::run(args, &ctx),
         Command::Synth(args) => synth::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
         Command::Mesh(args) => mesh::run(args, &ctx),

@@ -1021,19 +1021,17 @@ pub fn reconstruct(
         let keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, depth)).collect();
         LevelSamples::new(finest, &cells[depth as usize], &keys)
     };
-    let (num, den) = (0..samples.len())
-        .into_par_iter()
-        .map(|s| {
-            let w = cell_weights(samples[s], depth);
-            let v: f64 = finest_samples
-                .corners_of(s)
-                .iter()
-                .zip(w.iter())
-                .map(|(&c, w)| y[c as usize] * w)
-                .sum();
-            (area[s] * v, area[s])
-        })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    // In a fixed order: the iso-value, and so the mesh, must not depend on the thread count.
+    let [num, den] = fresco_core::ordered_sum::ordered_sum(samples.len(), |s| {
+        let w = cell_weights(samples[s], depth);
+        let v: f64 = finest_samples
+            .corners_of(s)
+            .iter()
+            .zip(w.iter())
+            .map(|(&c, w)| y[c as usize] * w)
+            .sum();
+        [area[s] * v, area[s]]
+    });
     let iso = num / den;
     let seconds_solve = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
