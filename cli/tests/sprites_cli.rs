@@ -17,6 +17,13 @@ fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/sprites")
 }
 
+/// A change made to a good scene, and what the error must say.
+type Case = (
+    &'static str,
+    Box<dyn Fn(&mut serde_json::Value)>,
+    &'static str,
+);
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -29,7 +36,7 @@ fn bad_scenes_fail_cleanly_naming_the_sprite() {
         serde_json::from_str(&std::fs::read_to_string(examples().join("gears.json")).unwrap())
             .unwrap();
     let pattern = |k: usize| s(&examples().join(good["patterns"][k].as_str().unwrap())).to_string();
-    let cases: [(&str, Box<dyn Fn(&mut serde_json::Value)>, &str); 5] = [
+    let cases: [Case; 5] = [
         (
             "unknown field",
             Box::new(|v| v["sprites"][3]["colour"] = 1.into()),
