@@ -24,7 +24,7 @@ fn octree_texels_take_the_models_texture_colours() {
     });
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("model.glb");
-    fresco_core::gltf::write_glb(&model, &mesh, &[texture.clone()]).unwrap();
+    fresco_core::gltf::write_glb(&model, &mesh, &[texture]).unwrap();
     let out = dir.path().join("t.foct");
     let cfg = OctreeConfig {
         n: 2,
