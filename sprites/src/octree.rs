@@ -268,6 +268,55 @@ fn fill_colors(
     });
 }
 
+/// Tree mip-mapping (section 6, after DeBry et al.): every node's value becomes the mean of
+/// the finest texels below it, so a lookup stopped at a coarser level
+/// ([`OctreeTexture::value_at_level`]) is the box-filtered texture of that cell.
+pub fn compute_node_values(tex: &mut OctreeTexture) {
+    let c = tex.channels as usize;
+    let mut values = vec![0u8; tex.pool.capacity() * c];
+    node_mean(tex, 0, &mut values);
+    tex.node_values = Some(values);
+}
+
+/// Sum of the texels under node `node` (packed) and their count; writes the node's mean.
+fn node_mean(tex: &OctreeTexture, node: u32, values: &mut [u8]) -> ([u64; 4], u64) {
+    let c = tex.channels as usize;
+    let mut sum = [0u64; 4];
+    let mut count = 0u64;
+    let mask_bytes = tex.mask_bytes();
+    for &cell in tex.pool.node(tex.pool.index(node)) {
+        match fresco_pst::octree_texture::tag(cell) {
+            TAG_CHILD => {
+                let (s, n) = node_mean(tex, fresco_pst::octree_texture::payload(cell), values);
+                for k in 0..c {
+                    sum[k] += s[k];
+                }
+                count += n;
+            }
+            TAG_BRICK => {
+                let off = fresco_pst::octree_texture::payload(cell) as usize;
+                let n: usize = tex.bricks[off..off + mask_bytes]
+                    .iter()
+                    .map(|b| b.count_ones() as usize)
+                    .sum();
+                let start = off + mask_bytes;
+                for t in tex.bricks[start..start + n * c].chunks_exact(c) {
+                    for k in 0..c {
+                        sum[k] += t[k] as u64;
+                    }
+                }
+                count += n as u64;
+            }
+            _ => {}
+        }
+    }
+    let i = tex.pool.index(node);
+    for k in 0..c {
+        values[i * c + k] = ((sum[k] + count / 2) / count.max(1)) as u8;
+    }
+    (sum, count)
+}
+
 /// Whether the triangle meets the cube of centre `c` and half-side `h` (separating axes:
 /// the box normals, the triangle normal and the 9 edge cross products; Akenine-Moller 2001).
 pub fn triangle_meets_box(tri: &[[f64; 3]; 3], c: [f64; 3], h: f64) -> bool {
@@ -480,6 +529,44 @@ mod tests {
             assert_eq!(back.to_bytes(), tex.to_bytes());
             let m = memory(&tex);
             assert!(m.structure_bytes < m.plain_layout_bytes, "{m:?}");
+            // Tree mip-mapping: a coarser cell's value is the mean of the texels inside it.
+            let mut tex = tex;
+            compute_node_values(&mut tex);
+            let back = OctreeTexture::from_bytes(&tex.to_bytes()).unwrap();
+            assert_eq!(back.node_values, tex.node_values);
+            let level = cfg.depth - 3;
+            let coarse = (n as usize).pow(level + 1);
+            let cw = tex.size as f64 / coarse as f64;
+            let per = cells / coarse;
+            let mut compared = 0;
+            for z in 0..coarse {
+                for y in 0..coarse {
+                    for x in 0..coarse {
+                        let (mut sum, mut k) = (0.0, 0);
+                        for dz in 0..per {
+                            for dy in 0..per {
+                                for dx in 0..per {
+                                    let c = [x * per + dx, y * per + dy, z * per + dz];
+                                    let p = [0, 1, 2].map(|a| min[a] + (c[a] as f64 + 0.5) * w);
+                                    if let Some(t) = tex.texel(tex.fixed(p)) {
+                                        sum += t[0] as f64;
+                                        k += 1;
+                                    }
+                                }
+                            }
+                        }
+                        let centre = [x, y, z].map(|i| i as f64 + 0.5);
+                        let p = [0, 1, 2].map(|a| min[a] + centre[a] * cw);
+                        let v = tex.value_at_level(tex.fixed(p), level);
+                        assert_eq!(v.is_some(), k > 0, "cell {x},{y},{z}");
+                        if let Some(v) = v {
+                            assert!((v[0] as f64 - sum / k as f64).abs() <= 0.5 + 1e-9);
+                            compared += 1;
+                        }
+                    }
+                }
+            }
+            assert!(compared > 20, "{compared}");
         }
     }
 

@@ -176,11 +176,13 @@ pub enum OctreeSource<'a> {
     Model(&'a Path),
 }
 
-/// Builds the octree texture of `mesh` and writes it (`.foct`, pst's format) to `output`.
+/// Builds the octree texture of `mesh` (with node values for tree mip-mapping when `mip`)
+/// and writes it (`.foct`, pst's format) to `output`.
 pub fn octree_texture(
     mesh: &Mesh,
     source: &OctreeSource,
     config: &OctreeConfig,
+    mip: bool,
     output: &Path,
 ) -> Result<(OctreeTexture, OctreeMemory)> {
     let tex = match source {
@@ -203,6 +205,10 @@ pub fn octree_texture(
             })?
         }
     };
+    let mut tex = tex;
+    if mip {
+        crate::octree::compute_node_values(&mut tex);
+    }
     tex.save(output)?;
     let mem = crate::octree::memory(&tex);
     Ok((tex, mem))

@@ -31,7 +31,8 @@ fn octree_texels_take_the_models_texture_colours() {
         depth: 6,
         margin: 0.01,
     };
-    let (tex, mem) = octree_texture(&mesh, &OctreeSource::Model(&model), &cfg, &out).unwrap();
+    let (tex, mem) =
+        octree_texture(&mesh, &OctreeSource::Model(&model), &cfg, false, &out).unwrap();
     assert!(mem.texels > 1000, "{mem:?}");
     let back = fresco_pst::octree_texture::OctreeTexture::load(&out).unwrap();
     assert_eq!(back.to_bytes(), tex.to_bytes());
