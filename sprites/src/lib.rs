@@ -33,3 +33,40 @@ pub use error::{Result, SpriteError};
 pub use pattern::Pattern;
 pub use sprite::{BlendMode, Placement, Sprite};
 pub use tree::{MemoryReport, SpriteTree, TreeConfig};
+
+#[cfg(test)]
+mod tests {
+    /// The defaults the documentation states, pinned.
+    #[test]
+    fn documented_defaults() {
+        let t = crate::TreeConfig::default();
+        assert_eq!((t.n, t.o_max, t.max_depth), (4, 8, 10));
+        let b = crate::BlendConfig::default();
+        assert_eq!(
+            (
+                b.fade_start_deg,
+                b.fade_end_deg,
+                b.blobby_threshold,
+                b.blobby_softness
+            ),
+            (60.0, 85.0, 0.5, 0.1)
+        );
+        let o = crate::octree::OctreeConfig::default();
+        assert_eq!((o.n, o.depth, o.margin), (2, 9, 0.01));
+        let k = crate::bake::BakeConfig::default();
+        assert_eq!((k.padding, k.size, k.base), (4, 2048, [200, 200, 200]));
+        let r = crate::render::RenderConfig::default();
+        assert_eq!(
+            (r.base, r.background, r.shaded, r.filter),
+            ([200; 3], [0; 3], false, true)
+        );
+        for c in [
+            t.check().is_ok(),
+            b.check().is_ok(),
+            o.check().is_ok(),
+            k.check().is_ok(),
+        ] {
+            assert!(c);
+        }
+    }
+}
