@@ -15,6 +15,7 @@ mod reconstruct;
 mod report;
 mod run;
 mod sfm;
+mod sprites;
 mod synth;
 mod texture;
 mod unwrap;
@@ -79,6 +80,8 @@ enum Command {
     /// The texture atlas of a mesh from its photos: graph-cut view fusion, leveling, hole
     /// filling; <ws>/texture/ and <ws>/model.glb.
     Texture(texture::TextureArgs),
+    /// Texture sprites: render or bake a sprite scene, build octree textures.
+    Sprites(sprites::SpritesArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -116,6 +119,7 @@ fn main() -> ExitCode {
         Command::Features(args) => features::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
         Command::Texture(args) => texture::run(args, &ctx),
+        Command::Sprites(args) => sprites::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

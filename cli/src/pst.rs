@@ -275,7 +275,9 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
             let field = fresco_pst::Field::new(&all, field_config(a.k, None)?);
             let tex = fresco_pst::octree_texture::OctreeTexture::from_field(&field, a.depth)?;
             tex.save(&a.output)?;
-            Ok(json!({ "output": a.output, "nodes": tex.children.len(), "depth": a.depth }))
+            Ok(
+                json!({ "output": a.output, "nodes": tex.pool.used_nodes(), "texels": tex.texels, "depth": a.depth }),
+            )
         }
         PstCommand::Apply(a) => {
             let pst = Pst::open(&a.pst)?;
