@@ -53,6 +53,7 @@ use std::time::Instant;
 
 use fresco_core::Mesh;
 use fresco_core::Progress;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use thiserror::Error;
@@ -62,27 +63,90 @@ use crate::isosurface;
 use crate::octree::{self, Level, MISSING, Map, SortedKeys};
 use crate::solver::{self, CgReport};
 
-/// Settings of [`reconstruct`]; the defaults are PoissonRecon's.
+/// Settings of [`reconstruct`]. Where PoissonRecon has the same setting, the defaults are
+/// its defaults, except `depth` (PoissonRecon's is 8).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PoissonConfig {
     /// Finest octree depth: the unit cube around the samples is cut into `2^depth` cells per
-    /// axis where there are samples. 2 ..= 12.
+    /// axis where there are samples; in 2..=12. Default: `9`.
     pub depth: u32,
-    /// Screening weight (SPSR's alpha at the finest level); 0 gives unscreened Poisson.
+    /// Screening weight (SPSR's alpha at the finest level), finite and >= 0; 0 gives
+    /// unscreened Poisson. Default: `4.0` (PoissonRecon's `--pointWeight`).
     pub point_weight: f64,
-    /// How many samples a node should hold: the unit of the density written per vertex
-    /// (`PoissonOutput::vertex_density` is the depth at which a node would hold this many).
+    /// How many samples a node should hold, finite and > 0: the unit of the density written
+    /// per vertex (`PoissonOutput::vertex_density` is the depth at which a node would hold
+    /// this many). Default: `1.5` (PoissonRecon's `--samplesPerNode`).
     pub samples_per_node: f64,
-    /// The cube is the samples' bounding box enlarged by this factor (>= 1).
+    /// The cube is the samples' bounding box enlarged by this factor, finite and >= 1.
+    /// Default: `1.1` (PoissonRecon's `--scale`).
     pub scale: f64,
-    /// Levels up to this depth cover the whole cube (coarse, cheap, they carry the far field).
+    /// Levels up to this depth cover the whole cube (coarse, cheap, they carry the far
+    /// field); in 0..=12, and at most `depth` is used. Default: `5` (PoissonRecon's
+    /// `--fullDepth`).
     pub full_depth: u32,
-    /// CG iterations per band level (the cascade only corrects detail there).
+    /// CG iterations per band level (the cascade only corrects detail there), >= 1.
+    /// Default: `40`.
     pub cg_iterations: usize,
-    /// CG iterations on the full levels.
+    /// CG iterations on the full levels, >= 1. Default: `200`.
     pub coarse_cg_iterations: usize,
-    /// Relative residual at which a level's CG stops early.
+    /// Relative residual at which a level's CG stops early, finite and >= 0.
+    /// Default: `0.0001`.
     pub cg_tolerance: f64,
+}
+
+impl PoissonConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let finite_at_least = |v: f64, lo: f64| v.is_finite() && v >= lo;
+        require(
+            (2..=12).contains(&self.depth),
+            "depth",
+            self.depth,
+            "in 2..=12",
+        )?;
+        require(
+            finite_at_least(self.point_weight, 0.0),
+            "point_weight",
+            self.point_weight,
+            "finite and >= 0",
+        )?;
+        require(
+            self.samples_per_node.is_finite() && self.samples_per_node > 0.0,
+            "samples_per_node",
+            self.samples_per_node,
+            "finite and > 0",
+        )?;
+        require(
+            finite_at_least(self.scale, 1.0),
+            "scale",
+            self.scale,
+            "finite and >= 1",
+        )?;
+        require(
+            self.full_depth <= 12,
+            "full_depth",
+            self.full_depth,
+            "in 0..=12",
+        )?;
+        require(
+            self.cg_iterations >= 1,
+            "cg_iterations",
+            self.cg_iterations,
+            ">= 1",
+        )?;
+        require(
+            self.coarse_cg_iterations >= 1,
+            "coarse_cg_iterations",
+            self.coarse_cg_iterations,
+            ">= 1",
+        )?;
+        require(
+            finite_at_least(self.cg_tolerance, 0.0),
+            "cg_tolerance",
+            self.cg_tolerance,
+            "finite and >= 0",
+        )
+    }
 }
 
 impl Default for PoissonConfig {
@@ -158,8 +222,8 @@ pub enum PoissonError {
     TooFewPoints { usable: usize, dropped: usize },
     #[error("all points coincide: the point cloud has no extent")]
     NoExtent,
-    #[error("invalid Poisson setting: {0}")]
-    InvalidConfig(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Samples are splatted 1.25 levels coarser than their density depth (a kernel 2^1.25 = 2.4
@@ -182,29 +246,6 @@ const MIN_SAMPLES: usize = 10;
 /// sample count and `sigma * h^2` for a plane through the density grid (derivation in
 /// `Density`).
 const KERNEL_PLANE_FACTOR: f64 = 0.55;
-
-fn check_config(cfg: &PoissonConfig) -> Result<(), PoissonError> {
-    let bad = |m: String| Err(PoissonError::InvalidConfig(m));
-    if !(2..=12).contains(&cfg.depth) {
-        return bad(format!("depth {} is outside 2..=12", cfg.depth));
-    }
-    if !(cfg.point_weight >= 0.0 && cfg.point_weight.is_finite()) {
-        return bad(format!("point weight {} must be >= 0", cfg.point_weight));
-    }
-    if !(cfg.samples_per_node > 0.0 && cfg.samples_per_node.is_finite()) {
-        return bad(format!(
-            "samples per node {} must be > 0",
-            cfg.samples_per_node
-        ));
-    }
-    if !(cfg.scale >= 1.0 && cfg.scale.is_finite()) {
-        return bad(format!("scale {} must be >= 1", cfg.scale));
-    }
-    if cfg.cg_tolerance.is_nan() || cfg.cg_tolerance < 0.0 {
-        return bad(format!("CG tolerance {} must be >= 0", cfg.cg_tolerance));
-    }
-    Ok(())
-}
 
 /// Sampling density estimated by splatting the samples with a quadratic B-spline on a dense
 /// grid of depth `kernel_depth = min(depth - 2, 8)` (PoissonRecon's kernel depth is also two
@@ -538,7 +579,7 @@ pub fn reconstruct(
     cfg: &PoissonConfig,
     progress: &dyn Progress,
 ) -> Result<PoissonOutput, PoissonError> {
-    check_config(cfg)?;
+    cfg.check()?;
     if points.len() != normals.len() {
         return Err(PoissonError::LengthMismatch {
             points: points.len(),
