@@ -242,6 +242,9 @@ const SPLAT_DEPTH_OFFSET: f64 = 1.25;
 /// Smallest number of samples accepted.
 const MIN_SAMPLES: usize = 10;
 
+/// Samples per partial sum of the iso-value.
+const ISO_CHUNK: usize = 4096;
+
 /// `mean over u of sum_j quadratic(u)_j^2` (= 0.55): the factor between the kernel-smoothed
 /// sample count and `sigma * h^2` for a plane through the density grid (derivation in
 /// `Density`).
@@ -1062,19 +1065,30 @@ pub fn reconstruct(
         let keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, depth)).collect();
         LevelSamples::new(finest, &cells[depth as usize], &keys)
     };
-    let (num, den) = (0..samples.len())
+    // Partial sums over fixed chunks of samples, added in order: the same bits whatever the
+    // thread count (a rayon `reduce` splits where threads steal work).
+    let partial: Vec<(f64, f64)> = (0..samples.len())
         .into_par_iter()
-        .map(|s| {
-            let w = cell_weights(samples[s], depth);
-            let v: f64 = finest_samples
-                .corners_of(s)
-                .iter()
-                .zip(w.iter())
-                .map(|(&c, w)| y[c as usize] * w)
-                .sum();
-            (area[s] * v, area[s])
+        .step_by(ISO_CHUNK)
+        .map(|start| {
+            let mut sum = (0.0, 0.0);
+            for s in start..(start + ISO_CHUNK).min(samples.len()) {
+                let w = cell_weights(samples[s], depth);
+                let v: f64 = finest_samples
+                    .corners_of(s)
+                    .iter()
+                    .zip(w.iter())
+                    .map(|(&c, w)| y[c as usize] * w)
+                    .sum();
+                sum.0 += area[s] * v;
+                sum.1 += area[s];
+            }
+            sum
         })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .collect();
+    let (num, den) = partial
+        .iter()
+        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     let iso = num / den;
     let seconds_solve = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
