@@ -42,28 +42,34 @@ struct Cli {
     command: Command,
 }
 
+/// The verbs, in pipeline order (`fresco --help` lists them so; cli/tests/error_messages.rs
+/// holds the same order): the photo pipeline's stages, then the tools around them.
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
-    /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
-    Synth(synth::SynthArgs),
-    /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
-    /// density trimming, clean-up and decimation.
-    Mesh(mesh::MeshArgs),
-    /// Point-sampled textures for meshes too large for memory.
-    Pst(pst::PstArgs),
+    // `fresco run` (issue 15), the whole pipeline, goes first.
+    /// SIFT features of a folder of photos into a workspace (feature files, images.json).
+    Features(features::FeaturesArgs),
     /// Match the features of a workspace's images and verify the pairs' two-view geometry.
     Match(matching::MatchArgs),
     /// Cameras and a sparse point cloud from a workspace's features and matches.
     Sfm(sfm::SfmArgs),
-    /// Measure results against ground truth or a reference (poses).
-    Eval(eval::EvalArgs),
     /// Photos to cameras and sparse points in one go: features, match, sfm.
     Reconstruct(reconstruct::ReconstructArgs),
-    /// SIFT features of a folder of photos into a workspace (feature files, images.json).
-    Features(features::FeaturesArgs),
+    // `fresco dense` (issue 13) goes here.
+    /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
+    /// density trimming, clean-up and decimation.
+    Mesh(mesh::MeshArgs),
     /// Charts, flattens and packs a mesh's texture coordinates (with a PNG of the atlas).
     Unwrap(unwrap::UnwrapArgs),
+    // `fresco texture` (issue 14) goes here.
+    /// Measure results against ground truth or a reference (poses).
+    Eval(eval::EvalArgs),
+    // `fresco view` (issue 15) goes here.
+    /// Point-sampled textures for meshes too large for memory.
+    Pst(pst::PstArgs),
+    /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
+    /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
+    Synth(synth::SynthArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -88,15 +94,15 @@ fn main() -> ExitCode {
         json: cli.json,
     };
     let result: anyhow::Result<serde_json::Value> = match cli.command {
-        Command::Synth(args) => synth::run(args, &ctx),
-        Command::Pst(args) => pst::run(args, &ctx),
-        Command::Mesh(args) => mesh::run(args, &ctx),
+        Command::Features(args) => features::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
-        Command::Eval(args) => eval::run(args, &ctx),
         Command::Reconstruct(args) => reconstruct::run(args, &ctx),
-        Command::Features(args) => features::run(args, &ctx),
+        Command::Mesh(args) => mesh::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
+        Command::Eval(args) => eval::run(args, &ctx),
+        Command::Pst(args) => pst::run(args, &ctx),
+        Command::Synth(args) => synth::run(args, &ctx),
     };
     match result {
         Ok(summary) => {
