@@ -11,9 +11,12 @@ mod mesh;
 mod progress;
 mod pst;
 mod reconstruct;
+mod report;
+mod run;
 mod sfm;
 mod synth;
 mod unwrap;
+mod view;
 
 use std::process::ExitCode;
 
@@ -46,7 +49,8 @@ struct Cli {
 /// holds the same order): the photo pipeline's stages, then the tools around them.
 #[derive(Subcommand, Debug)]
 enum Command {
-    // `fresco run` (issue 15), the whole pipeline, goes first.
+    /// Photos to a textured model.glb in one go, resumable, with report.html and summary.json.
+    Run(run::RunArgs),
     /// SIFT features of a folder of photos into a workspace (feature files, images.json).
     Features(features::FeaturesArgs),
     /// Match the features of a workspace's images and verify the pairs' two-view geometry.
@@ -64,7 +68,8 @@ enum Command {
     // `fresco texture` (issue 14) goes here.
     /// Measure results against ground truth or a reference (poses).
     Eval(eval::EvalArgs),
-    // `fresco view` (issue 15) goes here.
+    /// Serve a workspace's report and model viewer (or a .glb) on 127.0.0.1.
+    View(view::ViewArgs),
     /// Point-sampled textures for meshes too large for memory.
     Pst(pst::PstArgs),
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
@@ -94,6 +99,7 @@ fn main() -> ExitCode {
         json: cli.json,
     };
     let result: anyhow::Result<serde_json::Value> = match cli.command {
+        Command::Run(args) => run::run(args, &ctx),
         Command::Features(args) => features::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
@@ -101,6 +107,7 @@ fn main() -> ExitCode {
         Command::Mesh(args) => mesh::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
         Command::Eval(args) => eval::run(args, &ctx),
+        Command::View(args) => view::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
         Command::Synth(args) => synth::run(args, &ctx),
     };

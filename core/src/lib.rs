@@ -12,6 +12,7 @@
 //! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - `ordered_sum.rs`: parallel sums with the same bits whatever the thread count.
 //! - [`Rng`] (`rng.rs`): the one seeded random generator (SplitMix64); every stage draws from it.
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
 //! - [`FormatError`] (`error.rs`): what was wrong with a file and where; `atomic_file.rs`:
@@ -29,6 +30,7 @@ pub mod knn;
 pub mod mesh;
 pub mod middlebury;
 pub mod obj;
+pub mod ordered_sum;
 pub mod photo;
 pub mod ply;
 pub mod pose;

@@ -252,9 +252,6 @@ const SPLAT_DEPTH_OFFSET: f64 = 1.25;
 /// Smallest number of samples accepted.
 const MIN_SAMPLES: usize = 10;
 
-/// Samples per partial sum of the iso-value.
-const ISO_CHUNK: usize = 4096;
-
 /// `mean over u of sum_j quadratic(u)_j^2` (= 0.55): the factor between the kernel-smoothed
 /// sample count and `sigma * h^2` for a plane through the density grid (derivation in
 /// `Density`).
@@ -1332,30 +1329,17 @@ fn iso_value(problem: &Problem, y: &[f64]) -> f64 {
         let keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, depth)).collect();
         LevelSamples::new(problem.finest(), &problem.cells[depth as usize], &keys)
     };
-    // Partial sums over fixed chunks of samples, added in order: the same bits whatever the
-    // thread count (a rayon `reduce` splits where threads steal work).
-    let partial: Vec<(f64, f64)> = (0..samples.len())
-        .into_par_iter()
-        .step_by(ISO_CHUNK)
-        .map(|start| {
-            let mut sum = (0.0, 0.0);
-            for s in start..(start + ISO_CHUNK).min(samples.len()) {
-                let w = cell_weights(samples[s], depth);
-                let v: f64 = finest_samples
-                    .corners_of(s)
-                    .iter()
-                    .zip(w.iter())
-                    .map(|(&c, w)| y[c as usize] * w)
-                    .sum();
-                sum.0 += area[s] * v;
-                sum.1 += area[s];
-            }
-            sum
-        })
-        .collect();
-    let (num, den) = partial
-        .iter()
-        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    // In a fixed order: the iso-value, and so the mesh, must not depend on the thread count.
+    let [num, den] = fresco_core::ordered_sum::ordered_sum(samples.len(), |s| {
+        let w = cell_weights(samples[s], depth);
+        let v: f64 = finest_samples
+            .corners_of(s)
+            .iter()
+            .zip(w.iter())
+            .map(|(&c, w)| y[c as usize] * w)
+            .sum();
+        [area[s] * v, area[s]]
+    });
     num / den
 }
 

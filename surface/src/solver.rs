@@ -18,19 +18,9 @@ pub struct CgReport {
     pub final_residual: f64,
 }
 
-/// Elements per partial sum of [`dot`].
-const DOT_CHUNK: usize = 4096;
-
-/// `a . b`, the same bits whatever the thread count: partial sums over fixed chunks, added
-/// in order. (rayon's `sum` splits the range where threads steal work, so its rounding, and
-/// with it every CG iterate, changed from run to run.)
+/// In a fixed order, so that the solution has the same bits whatever the thread count.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let partial: Vec<f64> = a
-        .par_chunks(DOT_CHUNK)
-        .zip(b.par_chunks(DOT_CHUNK))
-        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-        .collect();
-    partial.iter().sum()
+    fresco_core::ordered_sum::ordered_dot(a, b)
 }
 
 /// Solves `A x = b` from the initial `x`, stopping after `max_iterations` or when the residual

@@ -287,38 +287,3 @@ fn poisson_density_matches_sampling_and_marks_holes() {
         "cap densities {cap:?}"
     );
 }
-
-/// The same cloud gives the same mesh bits (positions, faces, densities, iso-value) in pools
-/// of 1, 2 and 3 threads: every parallel sum is over fixed chunks added in order.
-#[test]
-fn results_do_not_depend_on_the_thread_count() {
-    let (p, n) = sample(&Shape::Torus.mesh(3), 20_000, 5);
-    let cfg = PoissonConfig {
-        depth: 7,
-        ..PoissonConfig::default()
-    };
-    let bits = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let out = pool.install(|| reconstruct(&p, &n, &cfg, &NoProgress).unwrap());
-        let positions: Vec<[u64; 3]> = out
-            .mesh
-            .positions
-            .iter()
-            .map(|v| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()])
-            .collect();
-        let density: Vec<u32> = out.vertex_density.iter().map(|d| d.to_bits()).collect();
-        (
-            positions,
-            out.mesh.faces,
-            density,
-            out.stats.iso_value.to_bits(),
-        )
-    };
-    let one = bits(1);
-    assert!(!one.1.is_empty());
-    assert!(one == bits(2), "2 threads differ from 1");
-    assert!(one == bits(3), "3 threads differ from 1");
-}
