@@ -72,10 +72,8 @@ pub fn run(args: EvalArgs, _ctx: &crate::Context) -> anyhow::Result<serde_json::
 }
 
 fn poses(args: PosesArgs) -> anyhow::Result<serde_json::Value> {
-    let model = read_model_or_workspace(&args.model)
-        .with_context(|| format!("reading the model {}", args.model.display()))?;
-    let reference = read_reference(&args.gt, &model)
-        .with_context(|| format!("reading the reference {}", args.gt.display()))?;
+    let model = read_model_or_workspace(&args.model).context("reading the model")?;
+    let reference = read_reference(&args.gt, &model).context("reading the reference")?;
     let e = evaluate_poses(&model, &reference).with_context(|| {
         format!(
             "comparing {} with {}",

@@ -17,10 +17,13 @@
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
 //! - [`FormatError`] (`error.rs`): what was wrong with a file and where; `atomic_file.rs`:
 //!   outputs written under a temporary name, then renamed.
+//! - [`ConfigError`] (`config.rs`): the one "invalid configuration" error every stage's
+//!   `Config::check()` returns, and the test that keeps documented defaults true.
 
 pub mod atomic_file;
 pub mod camera;
 pub mod colmap;
+pub mod config;
 pub mod error;
 pub mod gltf;
 pub mod knn;
@@ -38,6 +41,7 @@ pub mod rng;
 pub mod topology;
 
 pub use camera::{Camera, CameraError, CameraModel, Pixel};
+pub use config::ConfigError;
 pub use error::FormatError;
 pub use mesh::{Aabb, Mesh, MeshError};
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};
