@@ -22,11 +22,11 @@ use image::{DynamicImage, ImageDecoder, ImageReader, RgbImage, RgbaImage};
 /// Why a photo could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum PhotoError {
-    #[error("{path}: cannot read: {source}")]
+    /// The OS error is part of the message, so it is not also the `source` (see `FormatError`).
+    #[error("{path}: cannot read: {error}")]
     Unreadable {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{path}: the file is empty (0 bytes)")]
     EmptyFile { path: PathBuf },
@@ -189,9 +189,9 @@ pub fn load_rgba_within(path: &Path, limits: &PhotoLimits) -> Result<RgbaImage, 
 /// The bytes of an image file. Only regular files are read: a path a model or script names
 /// could be a device (`/dev/zero` never ends) or a pipe (never answers).
 fn read_image_file(path: &Path) -> Result<Vec<u8>, PhotoError> {
-    let unreadable = |source| PhotoError::Unreadable {
+    let unreadable = |error| PhotoError::Unreadable {
         path: path.to_path_buf(),
-        source,
+        error,
     };
     let meta = std::fs::metadata(path).map_err(unreadable)?;
     if !meta.is_file() {
