@@ -58,7 +58,7 @@ fn par_names_with_whitespace_or_control_characters_are_refused() {
         .to_string();
     assert!(
         e.contains("par_name_vertical_tab.txt")
-            && e.contains("line 2")
+            && e.contains("par_name_vertical_tab.txt:2:")
             && e.contains("whitespace or a control character"),
         "{e}"
     );
@@ -82,7 +82,28 @@ fn obj_with_a_colour_line_short_of_numbers_reads_without_its_materials() {
 fn obj_naming_a_device_as_material_library_does_not_hang() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("device.obj");
-    std::fs::write(&path, "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        &path,
+        "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     let scene = within(Duration::from_secs(1), || fresco_core::obj::read_obj(&path)).unwrap();
     assert_eq!(scene.mesh.faces.len(), 1);
+}
+
+/// glb (pst's target, the same gltf 1.4.1 panics in core's read_glb): a 12-byte header
+/// declaring 0 bytes (gltf subtracts its header size unchecked) and a primitive naming an
+/// accessor the file lacks (gltf's validation looks it up before checking). Both readers now
+/// go through `gltf::parse_glb`, which checks them first.
+#[test]
+fn glb_short_length_and_missing_accessor_are_clear_errors() {
+    for (name, says) in [
+        ("glb_short_length.glb", "declares 0 bytes"),
+        ("glb_accessor_out_of_range.glb", "refers to accessor"),
+    ] {
+        let e = fresco_core::gltf::read_glb(&input(name))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name) && e.contains(says), "{e}");
+    }
 }
