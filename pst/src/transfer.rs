@@ -147,47 +147,10 @@ fn read_image(path: &Path) -> Result<RgbaImage> {
         .map_err(|e| PstError::Parameter(format!("cannot read the texture: {e}")))
 }
 
-/// `gltf::Gltf::from_slice`, with what its validation indexes unchecked checked first: gltf
-/// 1.4.1 looks up every primitive's POSITION accessor (for its min/max) before it reports
-/// indices out of range, and panicked on such a file (found by the glb fuzz target).
-fn parse_glb(bytes: &[u8]) -> std::result::Result<gltf::Gltf, String> {
-    let raw = gltf::Gltf::from_slice_without_validation(bytes)
-        .map_err(|e| format!("not a valid GLB: {e}"))?;
-    let json = raw.document.into_json();
-    for (m, mesh) in json.meshes.iter().enumerate() {
-        for (p, prim) in mesh.primitives.iter().enumerate() {
-            for index in prim.attributes.values() {
-                if index.value() >= json.accessors.len() {
-                    return Err(format!(
-                        "not a valid GLB: mesh {m} primitive {p} refers to accessor {}, the file has {}",
-                        index.value(),
-                        json.accessors.len()
-                    ));
-                }
-            }
-        }
-    }
-    let document = gltf::Document::from_json(json).map_err(|e| format!("not a valid GLB: {e}"))?;
-    Ok(gltf::Gltf {
-        document,
-        blob: raw.blob,
-    })
-}
-
 fn load_glb(path: &Path) -> Result<TexturedModel> {
     let bytes = std::fs::read(path).map_err(|e| PstError::io(path, "cannot read the model", e))?;
     let bad = |m: String| PstError::Format(fresco_core::FormatError::invalid(path, m));
-    // A cut file is the usual corruption: say so before the parser's generic message.
-    if bytes.len() >= 12 && bytes.starts_with(b"glTF") {
-        let declared = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as u64;
-        if declared != bytes.len() as u64 {
-            return Err(bad(format!(
-                "the GLB header declares {declared} bytes but the file has {}: truncated or corrupt",
-                bytes.len()
-            )));
-        }
-    }
-    let gltf = parse_glb(&bytes).map_err(bad)?;
+    let gltf = fresco_core::gltf::parse_glb(&bytes).map_err(bad)?;
     let blob = gltf.blob.as_deref();
     let buffer_data = |b: gltf::Buffer<'_>| match b.source() {
         gltf::buffer::Source::Bin => blob,

@@ -93,9 +93,15 @@ fn ops_asking_for_endless_work_are_refused_before_running() {
     assert_eq!(pst.samples.attrs, before, "nothing applied");
     // The same for noise octaves, a smoothing neighbourhood and a channel of a million values.
     for (op, says) in [
-        (r#"{"op": "noise", "a": [0,0,0], "b": [1,1,1], "octaves": 4294967295}"#, "octaves"),
+        (
+            r#"{"op": "noise", "a": [0,0,0], "b": [1,1,1], "scale": 0.2, "octaves": 4294967295}"#,
+            "octaves",
+        ),
         (r#"{"op": "smooth", "k": 0}"#, "k = 0"),
-        (r#"{"op": "fill", "value": [1, 0, 0], "opacity": 1e39}"#, "opacity"),
+        (
+            r#"{"op": "fill", "value": [1, 0, 0], "opacity": 1e39}"#,
+            "opacity",
+        ),
     ] {
         let op: fresco_pst::paint::Op = serde_json::from_str(op).unwrap();
         let m = error_of(fresco_pst::paint::apply_op(
@@ -148,5 +154,8 @@ fn samples_file_with_an_overflowing_count_is_a_clear_error() {
     bytes.extend_from_slice(&[0; 4]);
     std::fs::write(&path, &bytes).unwrap();
     let m = error_of(fresco_pst::SampleSet::load(&path));
-    assert!(m.contains("samples.bin") && m.contains("more than 2^64"), "{m}");
+    assert!(
+        m.contains("samples.bin") && m.contains("more than 2^64"),
+        "{m}"
+    );
 }

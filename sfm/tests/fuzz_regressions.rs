@@ -39,7 +39,7 @@ fn workspace_with(edit: impl FnOnce(&mut serde_json::Value)) -> tempfile::TempDi
             "id": 1, "name": "a.jpg", "path": "photos/a.jpg", "width": 1600, "height": 1200,
             "num_keypoints": 3,
             "prior": {"focal_x": 1920.0, "focal_y": 1920.0, "cx": 800.0, "cy": 600.0,
-                      "source": "Exif35mm"},
+                      "source": "exif35mm"},
             "exif_orientation": 1, "camera_make": null, "camera_model": null
         }]
     });
