@@ -503,15 +503,39 @@ pub fn parse_glb(bytes: &[u8]) -> Result<gltf::Gltf, String> {
     let json = raw.document.into_json();
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (p, prim) in mesh.primitives.iter().enumerate() {
-            for index in prim.attributes.values() {
-                if index.value() >= json.accessors.len() {
-                    return Err(format!(
+            let attributes = prim.attributes.iter().map(|(s, i)| (Some(s), i));
+            for (semantic, index) in attributes.chain(prim.indices.iter().map(|i| (None, i))) {
+                let what = match semantic {
+                    None => "indices".to_string(),
+                    Some(Valid(s)) => format!("{s:?}"),
+                    Some(_) => "an unknown attribute".to_string(),
+                };
+                let accessor = json.accessors.get(index.value()).ok_or_else(|| {
+                    format!(
                         "not a valid GLB: mesh {m} primitive {p} refers to accessor {}, the file has {}",
                         index.value(),
                         json.accessors.len()
-                    ));
-                }
+                    )
+                })?;
+                accessor_fits(accessor, semantic).map_err(|e| {
+                    format!(
+                        "not a valid GLB: mesh {m} primitive {p}: {what} accessor {}: {e}",
+                        index.value()
+                    )
+                })?;
             }
+        }
+    }
+    // gltf's Image::source unwraps the buffer view and the MIME type of an embedded image.
+    for (i, image) in json.images.iter().enumerate() {
+        let embedded_ok = match &image.buffer_view {
+            Some(view) => view.value() < json.buffer_views.len() && image.mime_type.is_some(),
+            None => image.uri.is_some(),
+        };
+        if !embedded_ok {
+            return Err(format!(
+                "not a valid GLB: image {i} has neither a buffer view in range with a MIME type nor a URI"
+            ));
         }
     }
     let document = gltf::Document::from_json(json).map_err(|e| format!("not a valid GLB: {e}"))?;
@@ -519,6 +543,43 @@ pub fn parse_glb(bytes: &[u8]) -> Result<gltf::Gltf, String> {
         document,
         blob: raw.blob,
     })
+}
+
+/// Whether an accessor has a type and component type gltf's readers accept for `semantic`
+/// (`None`: primitive indices). gltf 1.4.1 assumes it and asserts the item size, or reaches
+/// `unreachable!`, on another (found by the core_glb fuzz target: a VEC2 POSITION). Sparse
+/// accessors are refused: fresco writes none, and gltf computes their extent unchecked.
+fn accessor_fits(
+    a: &json::Accessor,
+    semantic: Option<&json::validation::Checked<json::mesh::Semantic>>,
+) -> Result<(), String> {
+    use json::accessor::{ComponentType as C, Type as T};
+    use json::mesh::Semantic as S;
+    if a.sparse.is_some() {
+        return Err("sparse accessors are not supported".into());
+    }
+    let (Valid(ty), Valid(json::accessor::GenericComponentType(ct))) =
+        (&a.type_, &a.component_type)
+    else {
+        return Err("unknown type or component type".into());
+    };
+    let ok = match semantic {
+        None => *ty == T::Scalar && matches!(ct, C::U8 | C::U16 | C::U32),
+        Some(Valid(S::Positions | S::Normals)) => *ty == T::Vec3 && *ct == C::F32,
+        Some(Valid(S::Tangents)) => *ty == T::Vec4 && *ct == C::F32,
+        Some(Valid(S::TexCoords(_))) => *ty == T::Vec2 && matches!(ct, C::U8 | C::U16 | C::F32),
+        Some(Valid(S::Colors(_))) => {
+            matches!(ty, T::Vec3 | T::Vec4) && matches!(ct, C::U8 | C::U16 | C::F32)
+        }
+        Some(Valid(S::Joints(_))) => *ty == T::Vec4 && matches!(ct, C::U8 | C::U16),
+        Some(Valid(S::Weights(_))) => *ty == T::Vec4 && matches!(ct, C::U8 | C::U16 | C::F32),
+        _ => true,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!("type {ty:?} of {ct:?} is not one glTF allows here"))
+    }
 }
 
 /// Reads a GLB written by [`write_glb`] (or any GLB with triangle primitives, embedded

@@ -107,3 +107,41 @@ fn glb_short_length_and_missing_accessor_are_clear_errors() {
         assert!(e.contains(name) && e.contains(says), "{e}");
     }
 }
+
+/// core_glb, crash: a primitive whose TEXCOORD_0 names a VEC3 accessor (a fresco GLB with
+/// one index changed). gltf 1.4.1's readers assume the glTF types without checking: an
+/// assertion on the item size (8 against 12), or `unreachable!` for other component types.
+/// parse_glb now checks each attribute and index accessor's type before anything is read.
+#[test]
+fn glb_attribute_of_the_wrong_type_is_a_clear_error() {
+    let path = input("glb_texcoord_vec3.glb");
+    let e = fresco_core::gltf::read_glb(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("glb_texcoord_vec3.glb")
+            && e.contains("TexCoords(0) accessor 1")
+            && e.contains("Vec3"),
+        "{e}"
+    );
+}
+
+/// obj, crash: a face `f 1//1 2//1 3//-21474836481` (normal index relative, far before the
+/// first normal). tobj 4.0.5 adds it to the count and multiplies unchecked: an overflow panic
+/// wherever overflow checks are on. Indices are now checked first, the line named.
+#[test]
+fn obj_face_index_before_the_first_element_is_refused_with_its_line() {
+    let path = input("obj_relative_index_overflow.obj");
+    let e = fresco_core::obj::read_obj(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("obj_relative_index_overflow.obj:5:") && e.contains("normal index -21474836481"),
+        "{e}"
+    );
+}
+
+/// glb (pst's target), crash: an embedded image without `mimeType`, which gltf 1.4.1's
+/// `Image::source` unwraps; core's read_glb calls it too.
+#[test]
+fn glb_image_without_a_mime_type_is_a_clear_error() {
+    let path = input("glb_image_without_mime_type.glb");
+    let e = fresco_core::gltf::read_glb(&path).unwrap_err().to_string();
+    assert!(e.contains("image 0 has neither"), "{e}");
+}
