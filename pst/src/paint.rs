@@ -240,7 +240,9 @@ impl Op {
             } => {
                 region_ok(region)?;
                 match max_distance {
-                    Some(d) if !(*d >= 0.0) => Err(format!("max_distance {d} is not >= 0")),
+                    Some(d) if d.is_nan() || *d < 0.0 => {
+                        Err(format!("max_distance {d} is not >= 0"))
+                    }
                     _ => Ok(()),
                 }
             }

@@ -103,8 +103,7 @@ impl Manifest {
     /// made the LRU and the exports index out of bounds (found by the pst_store fuzz target).
     fn check(&self) -> std::result::Result<(), String> {
         let g = &self.grid;
-        if !(g.cell_size.is_finite() && g.cell_size > 0.0)
-            || !g.origin.iter().all(|x| x.is_finite())
+        if !(g.cell_size.is_finite() && g.cell_size > 0.0 && g.origin.iter().all(|x| x.is_finite()))
         {
             return Err(format!(
                 "grid cell size {} or origin {:?} is not finite and positive",

@@ -159,3 +159,27 @@ fn samples_file_with_an_overflowing_count_is_a_clear_error() {
         "{m}"
     );
 }
+
+/// core_glb's crash in pst's reader (both parse through core's parse_glb): a TEXCOORD_0 of
+/// type VEC3 made gltf 1.4.1's reader assert on the item size.
+#[test]
+fn glb_attribute_of_the_wrong_type_is_a_clear_error() {
+    let path = input("glb_texcoord_vec3.glb");
+    let m = error_of(TexturedModel::load(&path));
+    assert!(
+        m.contains("glb_texcoord_vec3.glb") && m.contains("Vec3"),
+        "{m}"
+    );
+}
+
+/// glb, crash: an embedded image with a buffer view and no `mimeType`; gltf 1.4.1's
+/// `Image::source` unwraps it. parse_glb checks each image's view and MIME type first.
+#[test]
+fn glb_image_without_a_mime_type_is_a_clear_error() {
+    let path = input("glb_image_without_mime_type.glb");
+    let m = error_of(TexturedModel::load(&path));
+    assert!(
+        m.contains("glb_image_without_mime_type.glb") && m.contains("image 0 has neither"),
+        "{m}"
+    );
+}

@@ -104,9 +104,9 @@ pub fn read_images(ws: &Path) -> Result<ImageList, FormatError> {
             return Err(bad(format!("size {}x{}", image.width, image.height)));
         }
         let p = &image.prior;
-        if !(p.focal_x > 0.0 && p.focal_y > 0.0 && p.focal_x.is_finite() && p.focal_y.is_finite())
-            || !(p.cx.is_finite() && p.cy.is_finite())
-        {
+        let focal_ok =
+            p.focal_x > 0.0 && p.focal_y > 0.0 && p.focal_x.is_finite() && p.focal_y.is_finite();
+        if !(focal_ok && p.cx.is_finite() && p.cy.is_finite()) {
             return Err(bad(format!(
                 "focal prior ({}, {}) at ({}, {}) is not positive and finite",
                 p.focal_x, p.focal_y, p.cx, p.cy
