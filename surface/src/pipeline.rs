@@ -261,7 +261,9 @@ pub fn mesh_from_points(
     let t = Instant::now();
     if !cfg.cameras.is_empty() {
         progress.begin("orientation", 0);
-        report.orientation = Some(face_the_cameras(&mut mesh, &cfg.cameras).map_err(MeshFromPointsError::Orientation)?);
+        report.orientation = Some(
+            face_the_cameras(&mut mesh, &cfg.cameras).map_err(MeshFromPointsError::Orientation)?,
+        );
         progress.end();
     }
     report.seconds_orientation = t.elapsed().as_secs_f64();
