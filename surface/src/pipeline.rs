@@ -50,7 +50,7 @@ pub struct MeshConfig {
     /// Face budget, >= 1; `None` keeps every face. Default: `Some(200_000)`.
     pub target_faces: Option<usize>,
     /// The cameras (intrinsics and pose) the points were photographed from; when given, the
-    /// mesh is oriented to face them (step 7). Default: `[]` (none).
+    /// mesh is oriented to face them (step 7). Default: `[]`.
     pub cameras: Vec<(Camera, CamFromWorld)>,
 }
 
