@@ -183,3 +183,22 @@ fn glb_image_without_a_mime_type_is_a_clear_error() {
         "{m}"
     );
 }
+
+/// pst_ply_points, crash (previous session, fixed in 7a1641e): a binary PLY whose vertex
+/// count times its record size overflows u64 (4e18 x 12 bytes); the end of the records was
+/// computed unchecked and the slice bound wrapped. Now the file is said to be cut short.
+#[test]
+fn ply_points_with_an_overflowing_vertex_count_is_a_clear_error() {
+    use fresco_pst::PointSource;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge_count.ply");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    bytes.extend_from_slice(&[0; 36]);
+    std::fs::write(&path, &bytes).unwrap();
+    let result = fresco_pst::PlyPoints::open(&path).and_then(|p| p.stream(&mut |_| Ok(())));
+    let m = error_of(result);
+    assert!(
+        m.contains("huge_count.ply") && m.contains("file ends inside the data"),
+        "{m}"
+    );
+}
