@@ -1,5 +1,5 @@
 //! `fresco features <images dir> -o <ws>`: SIFT features of every PNG/JPEG photo in a folder
-//! (`fresco_sfm::extract`), one feature file per photo under `<ws>/features/`, and
+//! (`fresco_sfm::features::extract`), one feature file per photo under `<ws>/features/`, and
 //! `<ws>/images.json` with sizes and focal-length priors (K file, EXIF, or COLMAP's default,
 //! with the source named). Photos that cannot be used are skipped with a warning.
 
@@ -10,8 +10,8 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 use fresco_core::Progress;
 use fresco_core::photo::load_photo;
-use fresco_sfm::extract::{MIN_IMAGE_SIDE, SiftConfig, extract_features};
-use fresco_sfm::feature_file::write_feature_file;
+use fresco_sfm::features::extract::{MIN_IMAGE_SIDE, SiftConfig, extract_features};
+use fresco_sfm::features::feature_file::write_feature_file;
 use fresco_sfm::focal_prior::{FocalPrior, focal_from_exif, parse_exif, read_calibration_file};
 use fresco_sfm::workspace::{IMAGES_VERSION, ImageEntry, ImageList, features_path, write_images};
 use rayon::prelude::*;
@@ -41,7 +41,7 @@ pub struct FeaturesArgs {
     pub no_upsample: bool,
     /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in
     /// [0, 1] (OpenCV's contrastThreshold; COLMAP's peak_threshold times 3).
-    #[arg(long, default_value_t = fresco_sfm::dog::DetectorConfig::default().contrast_threshold)]
+    #[arg(long, default_value_t = fresco_sfm::features::dog::DetectorConfig::default().contrast_threshold)]
     pub contrast_threshold: f32,
     /// Camera model the mapper should use (COLMAP name, e.g. SIMPLE_RADIAL, PINHOLE, OPENCV);
     /// recorded in <ws>/features.json.

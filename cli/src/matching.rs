@@ -7,11 +7,11 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
-use fresco_sfm::match_file::write_match_file;
+use fresco_sfm::geometry::two_view::PairKind;
+use fresco_sfm::matching::match_file::write_match_file;
 use fresco_sfm::matching::{MatchImage, MatchingConfig, PairSelection, match_pairs, select_pairs};
-use fresco_sfm::two_view::PairKind;
 use fresco_sfm::verification::VerificationConfig;
-use fresco_sfm::view_graph::ViewGraph;
+use fresco_sfm::verification::view_graph::ViewGraph;
 use fresco_sfm::workspace::{matches_path, read_features, read_images};
 use serde_json::json;
 

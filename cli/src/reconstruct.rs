@@ -44,7 +44,8 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             upright: false,
             rootsift: false,
             no_upsample: false,
-            contrast_threshold: fresco_sfm::dog::DetectorConfig::default().contrast_threshold,
+            contrast_threshold: fresco_sfm::features::dog::DetectorConfig::default()
+                .contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),
         },

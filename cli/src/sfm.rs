@@ -1,13 +1,13 @@
 //! `fresco sfm <ws>`: incremental mapping and bundle adjustment on a workspace that
 //! `fresco features` and `fresco match` filled; writes `<ws>/sparse/0` (COLMAP text, further
-//! models `sparse/1`, ...) and `<ws>/sparse/points.ply`. See `fresco_sfm::reconstruct`.
+//! models `sparse/1`, ...) and `<ws>/sparse/points.ply`. See `fresco_sfm::mapping::reconstruct`.
 
 use std::path::PathBuf;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
 use fresco_core::CameraModel;
-use fresco_sfm::reconstruct::{CameraMode, SfmConfig, run_sfm};
+use fresco_sfm::mapping::reconstruct::{CameraMode, SfmConfig, run_sfm};
 
 #[derive(Args, Debug)]
 pub struct SfmArgs {

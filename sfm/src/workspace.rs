@@ -13,10 +13,10 @@ use std::path::{Path, PathBuf};
 use fresco_core::FormatError;
 use serde::{Deserialize, Serialize};
 
-use crate::feature_file::{Features, read_feature_file, write_atomically};
+use crate::features::feature_file::{Features, read_feature_file, write_atomically};
 use crate::focal_prior::FocalPrior;
-use crate::match_file::read_match_file;
-use crate::two_view::VerifiedPair;
+use crate::geometry::two_view::VerifiedPair;
+use crate::matching::match_file::read_match_file;
 
 /// Version of the `images.json` layout this code writes and reads.
 pub const IMAGES_VERSION: u32 = 1;

@@ -22,9 +22,9 @@
 use std::path::{Path, PathBuf};
 
 use fresco_core::photo::{GreyImage, load_photo};
-use fresco_sfm::dog::DetectorConfig;
-use fresco_sfm::extract::{SiftConfig, extract_features};
-use fresco_sfm::feature_file::Features;
+use fresco_sfm::features::dog::DetectorConfig;
+use fresco_sfm::features::extract::{SiftConfig, extract_features};
+use fresco_sfm::features::feature_file::Features;
 use rayon::prelude::*;
 use serde::Deserialize;
 

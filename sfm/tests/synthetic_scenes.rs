@@ -11,8 +11,8 @@ use fresco_core::raster::{RasterConfig, SampleMap, visibility};
 use fresco_core::{Image, NoProgress, Point3D, Reconstruction, TrackElement};
 use fresco_datasets::{SceneConfig, Shape, build_scene};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::mapper::{MapperConfig, input_from_tracks, map};
-use fresco_sfm::reconstruct::intrinsics_standard_deviations;
+use fresco_sfm::mapping::mapper::{MapperConfig, input_from_tracks, map};
+use fresco_sfm::mapping::reconstruct::intrinsics_standard_deviations;
 use fresco_sfm::synthetic::SplitMix;
 
 /// Surface samples per scene.

@@ -7,13 +7,13 @@ use std::path::Path;
 
 use fresco_core::{NoProgress, Reconstruction, colmap, ply};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::feature_file::{Features, Keypoint, write_feature_file};
+use fresco_sfm::features::feature_file::{Features, Keypoint, write_feature_file};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
-use fresco_sfm::mapper::{MapperConfig, input_from_tracks};
-use fresco_sfm::match_file::write_match_file;
-use fresco_sfm::reconstruct::{SfmConfig, SfmError, run_sfm};
+use fresco_sfm::geometry::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
+use fresco_sfm::mapping::mapper::{MapperConfig, input_from_tracks};
+use fresco_sfm::mapping::reconstruct::{SfmConfig, SfmError, run_sfm};
+use fresco_sfm::matching::match_file::write_match_file;
 use fresco_sfm::synthetic::{SyntheticConfig, synthetic_reconstruction};
-use fresco_sfm::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
 use fresco_sfm::workspace::{
     IMAGES_VERSION, ImageEntry, ImageList, features_path, matches_path, write_images,
 };
@@ -241,7 +241,7 @@ fn bad_workspaces_are_reported() {
     assert!(!ws.join("sparse").join("0").exists());
     // A single camera for photos of different sizes is refused.
     let single = SfmConfig {
-        camera_mode: fresco_sfm::reconstruct::CameraMode::Single,
+        camera_mode: fresco_sfm::mapping::reconstruct::CameraMode::Single,
         ..config()
     };
     let mut list = fresco_sfm::workspace::read_images(ws).unwrap();

@@ -6,7 +6,7 @@
 use fresco_core::photo::GreyImage;
 use rayon::prelude::*;
 
-use crate::scale_space::ScaleSpace;
+use crate::features::scale_space::ScaleSpace;
 
 /// Detector thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -368,7 +368,7 @@ fn solve3(a: &[[f32; 3]; 3], b: &[f32; 3]) -> Option<[f32; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scale_space::{ScaleSpaceConfig, build_scale_space};
+    use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space};
 
     /// A Gaussian blob of standard deviation `sigma` centred at (cx, cy) (pixel-centre indices).
     fn blob(w: usize, h: usize, cx: f32, cy: f32, sigma: f32) -> GreyImage {

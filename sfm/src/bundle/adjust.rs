@@ -27,7 +27,7 @@ use nalgebra::{Matrix2x3, Matrix3, SMatrix, SVector, UnitQuaternion, Vector2, Ve
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::loss::Loss;
+use crate::bundle::loss::Loss;
 use fresco_core::camera::MAX_PARAMS;
 
 /// Most camera-side unknowns one observation touches: a pose (6) and all intrinsics.
@@ -239,36 +239,36 @@ struct PoseBlock {
     group: Option<usize>,
 }
 
-struct CameraBlock {
-    camera_id: u32,
+pub(super) struct CameraBlock {
+    pub(super) camera_id: u32,
     model: CameraModel,
     params: Vec<f64>,
-    free: Vec<usize>,
-    group: Option<usize>,
+    pub(super) free: Vec<usize>,
+    pub(super) group: Option<usize>,
 }
 
-struct Observation {
+pub(super) struct Observation {
     point: usize,
     pose: usize,
     pixel: Vector2<f64>,
 }
 
-struct Problem {
+pub(super) struct Problem {
     poses: Vec<PoseBlock>,
-    cameras: Vec<CameraBlock>,
+    pub(super) cameras: Vec<CameraBlock>,
     point_ids: Vec<u64>,
     points: Vec<Vector3<f64>>,
     /// Variable point index (into the point blocks of the Schur complement), if variable.
     point_var: Vec<Option<usize>>,
     /// The inverse map: point index of each variable point.
-    var_points: Vec<usize>,
+    pub(super) var_points: Vec<usize>,
     /// Observations sorted by point; `point_obs[p]..point_obs[p+1]` are point p's.
-    obs: Vec<Observation>,
+    pub(super) obs: Vec<Observation>,
     point_obs: Vec<usize>,
     /// Group sizes and scalar offsets of the reduced camera system.
     group_size: Vec<usize>,
-    group_offset: Vec<usize>,
-    n_camera_unknowns: usize,
+    pub(super) group_offset: Vec<usize>,
+    pub(super) n_camera_unknowns: usize,
 }
 
 /// The camera-side column blocks an observation touches: (group, first column in the
@@ -289,7 +289,7 @@ fn obs_parts(problem: &Problem, o: &Observation) -> ([(usize, usize, usize); 2],
     (parts, n)
 }
 
-fn build_problem(
+pub(super) fn build_problem(
     rec: &Reconstruction,
     setup: &BundleSetup,
     config: &BundleConfig,
@@ -517,7 +517,7 @@ fn fix_gauge(
 // ---------------------------------------------------------------------------------------
 // Block-sparse pattern of the reduced camera system (upper triangle of blocks).
 
-struct BlockPattern {
+pub(super) struct BlockPattern {
     /// For each row group `a`: sorted column groups `b >= a` and the offset of block (a, b)
     /// (row-major, size_a x size_b) in the value array.
     rows: Vec<Vec<(usize, usize)>>,
@@ -532,7 +532,7 @@ struct BlockPattern {
 const DENSE_SLOT_TABLE_MAX_GROUPS: usize = 2048;
 
 impl BlockPattern {
-    fn build(problem: &Problem) -> Self {
+    pub(super) fn build(problem: &Problem) -> Self {
         let n_groups = problem.group_size.len();
         let chunks = chunk_ranges(problem.points.len(), rayon::current_num_threads() * 4);
         let mut pairs: Vec<(usize, usize)> = chunks
@@ -620,15 +620,15 @@ fn chunk_ranges(n: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
 
 /// One observation's weighted residual and Jacobians at the current estimate.
 #[derive(Clone, Copy)]
-struct ObsLinear {
+pub(super) struct ObsLinear {
     /// Camera-side Jacobian: free pose columns then free intrinsic columns.
     jc: CamJacobian,
     jp: Matrix2x3<f64>,
-    r: Vector2<f64>,
+    pub(super) r: Vector2<f64>,
 }
 
-struct Linear {
-    obs: Vec<ObsLinear>,
+pub(super) struct Linear {
+    pub(super) obs: Vec<ObsLinear>,
     /// Per variable point: `V = sum Jp^T Jp`, `bp = -sum Jp^T r`.
     v: Vec<Matrix3<f64>>,
     bp: Vec<Vector3<f64>>,
@@ -668,14 +668,14 @@ fn project_any_depth(
 
 /// The parameters that change during the optimisation.
 #[derive(Clone)]
-struct State {
+pub(super) struct State {
     poses: Vec<(UnitQuaternion<f64>, Vector3<f64>)>,
     params: Vec<Vec<f64>>,
     points: Vec<Vector3<f64>>,
 }
 
 impl State {
-    fn of(problem: &Problem) -> Self {
+    pub(super) fn of(problem: &Problem) -> Self {
         State {
             poses: problem
                 .poses
@@ -754,7 +754,12 @@ fn linearise_obs(
     ObsLinear { jc, jp, r: r * sw }
 }
 
-fn linearise(problem: &Problem, pattern: &BlockPattern, state: &State, loss: Loss) -> Linear {
+pub(super) fn linearise(
+    problem: &Problem,
+    pattern: &BlockPattern,
+    state: &State,
+    loss: Loss,
+) -> Linear {
     let n_points = problem.points.len();
     let obs: Vec<ObsLinear> = problem
         .obs
@@ -917,7 +922,7 @@ fn damped_inverse(v: &Matrix3<f64>, lambda: f64) -> Option<Matrix3<f64>> {
 }
 
 /// The reduced camera system `S dc = g` for damping `lambda`, in the block pattern.
-fn schur(
+pub(super) fn schur(
     problem: &Problem,
     pattern: &BlockPattern,
     lin: &Linear,
@@ -1004,7 +1009,7 @@ fn schur(
 }
 
 /// Solves the reduced camera system; reuses the symbolic factorisation across iterations.
-struct ReducedSolver {
+pub(super) struct ReducedSolver {
     /// Scalar upper-triangular CSC pattern and, per entry, its index in the block values.
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
@@ -1013,7 +1018,7 @@ struct ReducedSolver {
 }
 
 impl ReducedSolver {
-    fn new(
+    pub(super) fn new(
         problem: &Problem,
         pattern: &BlockPattern,
         kind: LinearSolver,
@@ -1087,7 +1092,7 @@ impl ReducedSolver {
 
     /// Solves `S X = B` for the `k` columns of `b` (column-major, `n x k`) with one
     /// factorisation of `S`; `None` if `S` is not positive definite.
-    fn solve_columns(&self, s: &[f64], b: Vec<f64>, k: usize) -> Option<Vec<f64>> {
+    pub(super) fn solve_columns(&self, s: &[f64], b: Vec<f64>, k: usize) -> Option<Vec<f64>> {
         use faer::prelude::Solve;
         let n = b.len() / k.max(1);
         if n == 0 {
@@ -1353,85 +1358,6 @@ pub fn bundle_adjust(
     Ok(summary)
 }
 
-/// The covariance of one camera's free intrinsic parameters (see [`intrinsics_covariance`]).
-#[derive(Clone, Debug)]
-pub struct IntrinsicsCovariance {
-    pub camera_id: u32,
-    /// Indices into the camera's parameters (COLMAP order), in the covariance's order.
-    pub params: Vec<usize>,
-    /// Pixels² (and the units of the parameters).
-    pub covariance: nalgebra::DMatrix<f64>,
-}
-
-/// The covariance of every free intrinsic parameter at the current estimate, as the
-/// adjustment `setup`/`config` would move them: `σ² S⁻¹` restricted to each camera's
-/// intrinsics, where `S` is the reduced camera matrix (the Gauss–Newton normal equations
-/// with the points eliminated, robust weights included, the gauge fixed as the adjustment
-/// fixes it) and `σ²` the variance per residual coordinate (weighted squared residuals over
-/// the degrees of freedom; Triggs et al. 2000, section 10; Hartley and Zisserman, section
-/// 5.2.3). Meaningful at a minimum of the cost: after [`bundle_adjust`] with the same setup
-/// and config. Empty when no intrinsic is free; an error when `S` is singular (a parameter
-/// the data do not determine at all).
-pub fn intrinsics_covariance(
-    rec: &Reconstruction,
-    setup: &BundleSetup,
-    config: &BundleConfig,
-) -> Result<Vec<IntrinsicsCovariance>, BundleError> {
-    let problem = build_problem(rec, setup, config)?;
-    let state = State::of(&problem);
-    let pattern = BlockPattern::build(&problem);
-    let solver = ReducedSolver::new(&problem, &pattern, config.linear_solver)?;
-    let lin = linearise(&problem, &pattern, &state, config.loss);
-    let (s, _) = schur(&problem, &pattern, &lin, 0.0);
-    let unknowns = problem.n_camera_unknowns + 3 * problem.var_points.len();
-    let dof = (2 * problem.obs.len()).saturating_sub(unknowns);
-    if dof == 0 {
-        return Err(BundleError::Solver(
-            "as many unknowns as residuals: no covariance".into(),
-        ));
-    }
-    let sigma2 = lin.obs.iter().map(|l| l.r.norm_squared()).sum::<f64>() / dof as f64;
-    // The columns of S⁻¹ at every camera's intrinsics, from one factorisation.
-    let n = problem.n_camera_unknowns;
-    let columns: Vec<usize> = problem
-        .cameras
-        .iter()
-        .filter_map(|cam| {
-            cam.group
-                .map(|g| problem.group_offset[g]..problem.group_offset[g] + cam.free.len())
-        })
-        .flatten()
-        .collect();
-    let mut rhs = vec![0.0; n * columns.len()];
-    for (j, &c) in columns.iter().enumerate() {
-        rhs[j * n + c] = 1.0;
-    }
-    let inverse = solver
-        .solve_columns(&s, rhs, columns.len())
-        .ok_or_else(|| {
-            BundleError::Solver(
-                "the reduced camera matrix is singular: some intrinsics are undetermined".into(),
-            )
-        })?;
-    let mut out = Vec::new();
-    let mut first_column = 0;
-    for cam in &problem.cameras {
-        let Some(g) = cam.group else { continue };
-        let offset = problem.group_offset[g];
-        let m = cam.free.len();
-        let covariance = nalgebra::DMatrix::from_fn(m, m, |i, j| {
-            sigma2 * inverse[(first_column + j) * n + offset + i]
-        });
-        first_column += m;
-        out.push(IntrinsicsCovariance {
-            camera_id: cam.camera_id,
-            params: cam.free.clone(),
-            covariance,
-        });
-    }
-    Ok(out)
-}
-
 fn write_back(rec: &mut Reconstruction, problem: &Problem, state: &State) {
     for (i, pose) in problem.poses.iter().enumerate() {
         if pose.free.is_empty() {
@@ -1471,7 +1397,7 @@ fn write_back(rec: &mut Reconstruction, problem: &Problem, state: &State) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::evaluate::evaluate_poses;
     use crate::synthetic::{SyntheticConfig, perturb, synthetic_reconstruction};
@@ -1501,7 +1427,7 @@ mod tests {
 
     /// Perturbs everything but the gauge images 1 (whole pose) and 2 (its centre): the
     /// optimum is then the ground truth itself, not a similarity of it.
-    fn perturbed(truth: &Reconstruction, seed: u64) -> Reconstruction {
+    pub(crate) fn perturbed(truth: &Reconstruction, seed: u64) -> Reconstruction {
         let mut rec = truth.clone();
         perturb(&mut rec, 2.0, 0.1, 0.05, 0.03, seed);
         rec.images.get_mut(&1).unwrap().cam_from_world = truth.images[&1].cam_from_world;
@@ -1511,12 +1437,12 @@ mod tests {
         rec
     }
 
-    fn adjust_pair(rec: &mut Reconstruction, config: &BundleConfig) -> BundleSummary {
+    pub(crate) fn adjust_pair(rec: &mut Reconstruction, config: &BundleConfig) -> BundleSummary {
         let setup = setup_pair(rec);
         bundle_adjust(rec, &setup, config).unwrap()
     }
 
-    fn setup_pair(rec: &Reconstruction) -> BundleSetup {
+    pub(crate) fn setup_pair(rec: &Reconstruction) -> BundleSetup {
         BundleSetup {
             gauge: Gauge::Pair(1, 2),
             ..BundleSetup::global(rec)
@@ -1578,55 +1504,6 @@ mod tests {
         assert!(e.max_centre_frac < 0.003, "{e:?}");
         let f = rec.cameras[&1].params[0];
         assert!((f - 600.0).abs() < 2.0, "focal {f}");
-    }
-
-    /// The predicted covariance of the refined principal point matches the actual errors:
-    /// over 24 synthetic scenes (0.5 px noise), the errors divided by the predicted standard
-    /// deviations have a root mean square near 1 (the chi-square of 48 such values lies in
-    /// [0.7, 1.3] with probability > 0.98), and a band of views around the object determines
-    /// the principal point across the band to about a pixel.
-    #[test]
-    fn principal_point_covariance_matches_the_errors() {
-        let config = BundleConfig {
-            refine_principal_point: true,
-            loss: Loss::Squared,
-            ..Default::default()
-        };
-        let mut z2 = Vec::new();
-        let mut sigmas = Vec::new();
-        for seed in 0..24 {
-            let (truth, _) = synthetic_reconstruction(&SyntheticConfig {
-                noise_px: 0.5,
-                seed,
-                ..Default::default()
-            });
-            let mut rec = perturbed(&truth, seed + 100);
-            let summary = adjust_pair(&mut rec, &config);
-            assert!(summary.final_rms_px < 1.0, "{summary:?}");
-            let cov = intrinsics_covariance(&rec, &setup_pair(&rec), &config).unwrap();
-            assert_eq!(cov.len(), 1);
-            let c = &cov[0];
-            let pp = rec.cameras[&1].model.principal_point_idxs();
-            for k in pp {
-                let i = c.params.iter().position(|&q| q == k).unwrap();
-                let sd = c.covariance[(i, i)].sqrt();
-                let err = rec.cameras[&1].params[k] - truth.cameras[&1].params[k];
-                z2.push((err / sd).powi(2));
-                sigmas.push(sd);
-            }
-        }
-        let rms_z = (z2.iter().sum::<f64>() / z2.len() as f64).sqrt();
-        assert!(
-            (0.7..1.3).contains(&rms_z),
-            "rms z {rms_z}, sigmas {sigmas:?}"
-        );
-        // Measured: cx 0.96-1.23 px, cy 5.5-9.2 px. Across the ring (x) a shifted principal
-        // point would turn every camera about its own vertical axis, which the common points
-        // do not allow; along the ring's axis (y) the views all tilt alike, which a small
-        // change of elevation mostly absorbs.
-        for pair in sigmas.chunks(2) {
-            assert!(pair[0] < 2.0 && pair[1] < 15.0, "{sigmas:?}");
-        }
     }
 
     /// 10% gross outliers: with a robust loss the poses still land near the truth, and much

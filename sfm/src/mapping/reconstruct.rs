@@ -5,7 +5,7 @@
 //!   cameras grouped as COLMAP's camera modes do (`Auto`: one camera per photo size, EXIF
 //!   make/model and focal prior; `Single`; `PerImage`), initialised from the focal priors,
 //!   keypoint colours sampled from the photos;
-//! - [`run_sfm`]: mapping ([`crate::mapper::map`]), optional silhouette constraints
+//! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional silhouette constraints
 //!   (`silhouette.rs`, followed by a global adjustment), then the models are written to
 //!   `<ws>/sparse/0` (the largest), `<ws>/sparse/1`, ... (COLMAP text, each folder replaced as a
 //!   whole) and the main model's points to `<ws>/sparse/points.ply`; returns an
@@ -24,15 +24,15 @@ use nalgebra::Point2;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::bundle::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
 use crate::bundle::{BundleError, BundleSetup, bundle_adjust, intrinsics_covariance};
 use crate::evaluate::mean_reprojection_error;
 use crate::focal_prior::FocalSource;
-use crate::mapper::{
+use crate::geometry::two_view::PairKind;
+use crate::mapping::mapper::{
     Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes,
     bundle_config, map,
 };
-use crate::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
-use crate::two_view::PairKind;
 use crate::workspace::{ImageEntry, read_features, read_images, read_matches};
 
 /// How photos share cameras (intrinsics).

@@ -38,14 +38,14 @@ use fresco_core::{
 use nalgebra::{Point2, Point3, Vector2, Vector3};
 use serde::Serialize;
 
+use crate::bundle::loss::Loss;
 use crate::bundle::{BundleConfig, BundleError, BundleSetup, Gauge, bundle_adjust};
-use crate::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
-use crate::loss::Loss;
-use crate::pnp::{PnpConfig, estimate_pose};
-use crate::ransac::{Estimator, RansacConfig, ransac};
-use crate::tracks::{PairMatches, Tracks, build_tracks};
-use crate::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
-use crate::two_view::Correspondence;
+use crate::geometry::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
+use crate::geometry::pnp::{PnpConfig, estimate_pose};
+use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
+use crate::geometry::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
+use crate::geometry::two_view::Correspondence;
+use crate::mapping::tracks::{PairMatches, Tracks, build_tracks};
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
 #[derive(Clone, Debug)]
@@ -474,7 +474,7 @@ impl<'a> Builder<'a> {
     /// Reprojection error of `x` at observation `el` (pixels), if its image is registered and
     /// the point is in front of the camera.
     fn error_at(&self, el: &TrackElement, x: &Vector3<f64>) -> Option<f64> {
-        crate::triangulation::reprojection_error(&self.view_of(el)?, x)
+        crate::geometry::triangulation::reprojection_error(&self.view_of(el)?, x)
     }
 
     fn has_image(&self, pid: u64, image_id: u32) -> bool {
@@ -731,9 +731,9 @@ impl<'a> Builder<'a> {
                 if views.len() != union.len() {
                     continue;
                 }
-                let x = crate::triangulation::refine_point(&views, mean);
+                let x = crate::geometry::triangulation::refine_point(&views, mean);
                 let ok = views.iter().all(|v| {
-                    crate::triangulation::reprojection_error(v, &x)
+                    crate::geometry::triangulation::reprojection_error(v, &x)
                         .is_some_and(|e| e <= self.config.filter_max_error_px)
                 });
                 if !ok {
@@ -816,7 +816,7 @@ impl<'a> Builder<'a> {
             let mut drop = Vec::new();
             for el in &point.track {
                 let ok = self.view_of(el).is_some_and(|v| {
-                    crate::triangulation::reprojection_error(&v, &pos)
+                    crate::geometry::triangulation::reprojection_error(&v, &pos)
                         .is_some_and(|e| e <= self.config.filter_max_error_px)
                 });
                 if ok { keep.push(*el) } else { drop.push(*el) }

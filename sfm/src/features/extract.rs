@@ -10,11 +10,11 @@ use std::path::Path;
 use fresco_core::photo::{GreyImage, PhotoError, load_photo};
 use rayon::prelude::*;
 
-use crate::descriptor::{quantise, root_sift, sift_descriptor};
-use crate::dog::{DetectorConfig, detect_extrema};
-use crate::feature_file::{Features, Keypoint};
-use crate::orientation::{OrientationConfig, dominant_orientations};
-use crate::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
+use crate::features::descriptor::{quantise, root_sift, sift_descriptor};
+use crate::features::dog::{DetectorConfig, detect_extrema};
+use crate::features::feature_file::{Features, Keypoint};
+use crate::features::orientation::{OrientationConfig, dominant_orientations};
+use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
 
 /// Everything that controls feature extraction.
 #[derive(Clone, Copy, Debug, PartialEq)]

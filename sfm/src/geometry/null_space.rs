@@ -93,7 +93,7 @@ pub fn null_space_of_rank<const R: usize, const C: usize, const K: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::Lcg;
+    use crate::geometry::fundamental::tests::Lcg;
 
     /// A random R x C matrix of rank C - K: R rows in the orthogonal complement of K random
     /// vectors.

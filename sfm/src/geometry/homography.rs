@@ -6,10 +6,12 @@
 
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
-use crate::fundamental::{matrix_from_row_major, normalise, normalising_transform, transform};
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::fundamental::{
+    matrix_from_row_major, normalise, normalising_transform, transform,
+};
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// Normalised DLT homography of `data.len() >= 4` correspondences (least squares for more),
 /// scaled to unit Frobenius norm. None for degenerate input (three collinear points in a
@@ -109,8 +111,8 @@ impl Estimator for HomographyEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, projective_distance};
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::fundamental::tests::{Lcg, projective_distance};
+    use crate::geometry::ransac::{RansacConfig, ransac};
     use nalgebra::Point2;
 
     fn true_h() -> Matrix3<f64> {

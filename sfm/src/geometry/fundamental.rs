@@ -8,9 +8,9 @@
 
 use nalgebra::{Matrix3, Point2, SMatrix, Vector3};
 
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// The similarity `T` (Hartley 1997, section 5.2) that moves the centroid of `points` to the
 /// origin and makes their mean distance to it √2. None for fewer than two distinct points.
@@ -296,7 +296,7 @@ impl Estimator for FundamentalEstimator {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::ransac::{RansacConfig, ransac};
     use fresco_core::Rigid3;
     use nalgebra::{Point3, UnitQuaternion};
 

@@ -20,7 +20,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::feature_file::Descriptor;
+use crate::features::feature_file::Descriptor;
 
 /// Guided matching settings.
 #[derive(Clone, Debug, Serialize)]
@@ -280,7 +280,7 @@ pub fn match_guided(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::Lcg;
+    use crate::geometry::fundamental::tests::Lcg;
 
     /// The obvious implementation: every pair tested.
     fn brute_force(
@@ -355,7 +355,7 @@ mod tests {
         Vec<Descriptor>,
         Matrix3<f64>,
     ) {
-        let s = crate::fundamental::tests::Scene::new(seed, n, false);
+        let s = crate::geometry::fundamental::tests::Scene::new(seed, n, false);
         let data = s.pixels(0.3, seed + 1);
         let mut rng = Lcg(seed + 2);
         let x1: Vec<_> = data.iter().map(|c| c.x1).collect();

@@ -24,14 +24,14 @@ use fresco_core::Rigid3;
 use nalgebra::{Matrix3, Point2, UnitQuaternion, Vector3};
 use serde::Serialize;
 
-use crate::essential::{
+use crate::focal_prior::{FocalPrior, FocalSource};
+use crate::geometry::essential::{
     EssentialEstimator, pose_from_essential, project_to_essential, refine_relative_pose_robust,
 };
-use crate::focal_prior::{FocalPrior, FocalSource};
-use crate::fundamental::FundamentalEstimator;
-use crate::homography::HomographyEstimator;
-use crate::ransac::{RansacConfig, RansacReport, ransac};
-use crate::two_view::{Correspondence, PairKind, TwoViewGeometry};
+use crate::geometry::fundamental::FundamentalEstimator;
+use crate::geometry::homography::HomographyEstimator;
+use crate::geometry::ransac::{RansacConfig, RansacReport, ransac};
+use crate::geometry::two_view::{Correspondence, PairKind, TwoViewGeometry};
 
 /// Verification settings (defaults: COLMAP's `TwoViewGeometryOptions`).
 #[derive(Clone, Debug, Serialize)]
@@ -353,7 +353,7 @@ pub fn rotation_of_homography(hn: &Matrix3<f64>, min_ratio: f64) -> Option<UnitQ
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, Scene};
+    use crate::geometry::fundamental::tests::{Lcg, Scene};
 
     fn prior(source: FocalSource) -> FocalPrior {
         FocalPrior {

@@ -11,7 +11,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix4, Owned, UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
-use crate::ransac::{Estimator, RansacConfig, ransac};
+use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
 
 /// PnP settings.
 #[derive(Clone, Debug, Serialize)]

@@ -20,12 +20,12 @@
 use fresco_core::Rigid3;
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
-use crate::fundamental::{
+use crate::geometry::fundamental::{
     MINIMAL_RANK_TOLERANCE, epipolar_row, fundamental_eight_point, normalise,
 };
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// Exponents `(x, y, z)` of the 20 monomials of degree ≤ 3: the ten cubics first (eliminated),
 /// then the ten of degree ≤ 2 (the quotient-ring basis), in the order of the action matrix.
@@ -356,7 +356,7 @@ pub fn pose_from_essential(e: &Matrix3<f64>, data: &[Correspondence]) -> Option<
 }
 
 /// Signed Sampson distance of a normalised correspondence under `E` (its square is
-/// [`crate::fundamental::sampson_error_squared`]).
+/// [`crate::geometry::fundamental::sampson_error_squared`]).
 pub fn sampson_residual(e: &Matrix3<f64>, c: &Correspondence) -> f64 {
     let x1 = Vector3::new(c.x1.x, c.x1.y, 1.0);
     let x2 = Vector3::new(c.x2.x, c.x2.y, 1.0);
@@ -526,7 +526,7 @@ pub fn refine_relative_pose_robust(
                 .enumerate()
                 .map(|(i, c)| (sampson_residual(&e, c) * weights.map_or(1.0, |w| w[i])).abs()),
         );
-        let Some(sigma) = crate::loss::mad_scale(&mut abs) else {
+        let Some(sigma) = crate::bundle::loss::mad_scale(&mut abs) else {
             break;
         };
         // Exact data (sigma 0) cannot be improved; a NaN means a broken input.
@@ -550,7 +550,7 @@ pub fn refine_relative_pose_robust(
 
 /// Squared Sampson error of a normalised correspondence, scaled to pixels squared.
 pub fn essential_error_squared(e: &Matrix3<f64>, c: &Correspondence, focal_px: f64) -> f64 {
-    crate::fundamental::sampson_error_squared(e, c) * focal_px * focal_px
+    crate::geometry::fundamental::sampson_error_squared(e, c) * focal_px * focal_px
 }
 
 /// The essential matrix as a RANSAC estimator over normalised correspondences: five-point
@@ -595,8 +595,8 @@ impl Estimator for EssentialEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, Scene, projective_distance};
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::fundamental::tests::{Lcg, Scene, projective_distance};
+    use crate::geometry::ransac::{RansacConfig, ransac};
     use nalgebra::Point2;
 
     /// Pixels to normalised coordinates with the scene's K.
