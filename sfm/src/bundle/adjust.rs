@@ -608,6 +608,11 @@ impl BlockPattern {
     }
 }
 
+/// Chunks of points whose camera-side sums (`J^T J`, the Schur complement) are accumulated
+/// separately and then added in chunk order: a fixed count, not the thread count, so the
+/// floating-point sums, and every result, are the same whatever the number of threads.
+const SUM_CHUNKS: usize = 8;
+
 /// `n` items split into about `parts` contiguous ranges.
 fn chunk_ranges(n: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
     let parts = parts.max(1);
@@ -704,7 +709,10 @@ fn evaluate(problem: &Problem, state: &State, loss: Loss) -> (f64, f64) {
             }
             (cost, sq)
         })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
+        .collect::<Vec<_>>()
+        // Summed in point order: rayon's reduction tree depends on the thread count.
+        .into_iter()
+        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
 fn linearise_obs(
@@ -780,7 +788,7 @@ pub(super) fn linearise(
         })
         .unzip();
     // Camera blocks, accumulated per chunk of points and summed.
-    let chunks = chunk_ranges(n_points, rayon::current_num_threads());
+    let chunks = chunk_ranges(n_points, SUM_CHUNKS);
     let n = problem.n_camera_unknowns;
     let (u, bc) = chunks
         .into_par_iter()
@@ -810,14 +818,14 @@ pub(super) fn linearise(
             }
             (u, bc)
         })
-        .reduce(
-            || (vec![0.0; pattern.len], vec![0.0; n]),
-            |mut a, b| {
-                a.0.iter_mut().zip(&b.0).for_each(|(x, y)| *x += y);
-                a.1.iter_mut().zip(&b.1).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
+        .collect::<Vec<_>>()
+        .into_iter()
+        .reduce(|mut a, b| {
+            a.0.iter_mut().zip(&b.0).for_each(|(x, y)| *x += y);
+            a.1.iter_mut().zip(&b.1).for_each(|(x, y)| *x += y);
+            a
+        })
+        .unwrap_or_else(|| (vec![0.0; pattern.len], vec![0.0; n]));
     let gradient_max = bc
         .iter()
         .map(|x| x.abs())
@@ -929,7 +937,7 @@ pub(super) fn schur(
     lambda: f64,
 ) -> (Vec<f64>, Vec<f64>) {
     let n = problem.n_camera_unknowns;
-    let chunks = chunk_ranges(problem.points.len(), rayon::current_num_threads());
+    let chunks = chunk_ranges(problem.points.len(), SUM_CHUNKS);
     let (mut s, mut g) = chunks
         .into_par_iter()
         .map(|range| {
@@ -987,14 +995,14 @@ pub(super) fn schur(
             }
             (s, g)
         })
-        .reduce(
-            || (vec![0.0; pattern.len], vec![0.0; n]),
-            |mut a, b| {
-                a.0.iter_mut().zip(&b.0).for_each(|(x, y)| *x += y);
-                a.1.iter_mut().zip(&b.1).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
+        .collect::<Vec<_>>()
+        .into_iter()
+        .reduce(|mut a, b| {
+            a.0.iter_mut().zip(&b.0).for_each(|(x, y)| *x += y);
+            a.1.iter_mut().zip(&b.1).for_each(|(x, y)| *x += y);
+            a
+        })
+        .unwrap_or_else(|| (vec![0.0; pattern.len], vec![0.0; n]));
     s.iter_mut().zip(&lin.u).for_each(|(x, y)| *x += y);
     g.iter_mut().zip(&lin.bc).for_each(|(x, y)| *x += y);
     // Damping of the camera diagonal.
