@@ -810,7 +810,8 @@ pub(super) fn linearise(
                         for &(gb, cb, wb) in &parts[..np] {
                             if ga <= gb {
                                 let slot = pattern.slot(ga, gb);
-                                accumulate(&mut u, slot, wb, &jt, ca, wa, &jt, cb, wb, 1.0);
+                                let (ra, rb) = (rows(&jt, ca, wa), rows(&jt, cb, wb));
+                                accumulate(&mut u, slot, ra, rb, 1.0);
                             }
                         }
                     }
@@ -841,41 +842,38 @@ pub(super) fn linearise(
     }
 }
 
-/// `values[slot..]` (a row-major block with `stride` columns) += `sign * A[ra.., :] B[rb.., :]^T`
-/// over `wa` rows of A and `wb` rows of B: one block of `J^T J` or of `W V^-1 W^T`, computed
-/// only for the columns an observation really has.
-#[allow(clippy::too_many_arguments)]
+/// Rows `first..first + count` of a Jacobian-shaped matrix: one parameter block's columns of an
+/// observation (see [`obs_parts`]).
+#[derive(Clone, Copy)]
+struct Rows<'m, const K: usize> {
+    m: &'m SMatrix<f64, MAX_DC, K>,
+    first: usize,
+    count: usize,
+}
+
+/// `values[slot..]` (a row-major `a.count x b.count` block) += `sign * A[a rows, :] B[b rows, :]^T`:
+/// one block of `J^T J` or of `W V^-1 W^T`, computed only for the columns an observation
+/// really has.
 #[inline]
-fn accumulate<const K: usize>(
-    values: &mut [f64],
-    slot: usize,
-    stride: usize,
-    a: &SMatrix<f64, MAX_DC, K>,
-    ra: usize,
-    wa: usize,
-    b: &SMatrix<f64, MAX_DC, K>,
-    rb: usize,
-    wb: usize,
-    sign: f64,
-) {
+fn accumulate<const K: usize>(values: &mut [f64], slot: usize, a: Rows<K>, b: Rows<K>, sign: f64) {
     // The common block shapes (a pose has 6 free parameters, 5 for the gauge camera; a
     // shared camera 1-2) with their sizes known at compile time, so that the loops unroll;
     // the same operations in the same order as the general loop.
-    match (wa, wb) {
-        (6, 6) => accumulate_fixed::<K, 6, 6>(values, slot, stride, a, ra, b, rb, sign),
-        (6, 2) => accumulate_fixed::<K, 6, 2>(values, slot, stride, a, ra, b, rb, sign),
-        (2, 6) => accumulate_fixed::<K, 2, 6>(values, slot, stride, a, ra, b, rb, sign),
-        (2, 2) => accumulate_fixed::<K, 2, 2>(values, slot, stride, a, ra, b, rb, sign),
-        (6, 1) => accumulate_fixed::<K, 6, 1>(values, slot, stride, a, ra, b, rb, sign),
-        (1, 6) => accumulate_fixed::<K, 1, 6>(values, slot, stride, a, ra, b, rb, sign),
-        (1, 1) => accumulate_fixed::<K, 1, 1>(values, slot, stride, a, ra, b, rb, sign),
-        _ => {
+    match (a.count, b.count) {
+        (6, 6) => accumulate_fixed::<K, 6, 6>(values, slot, a, b, sign),
+        (6, 2) => accumulate_fixed::<K, 6, 2>(values, slot, a, b, sign),
+        (2, 6) => accumulate_fixed::<K, 2, 6>(values, slot, a, b, sign),
+        (2, 2) => accumulate_fixed::<K, 2, 2>(values, slot, a, b, sign),
+        (6, 1) => accumulate_fixed::<K, 6, 1>(values, slot, a, b, sign),
+        (1, 6) => accumulate_fixed::<K, 1, 6>(values, slot, a, b, sign),
+        (1, 1) => accumulate_fixed::<K, 1, 1>(values, slot, a, b, sign),
+        (wa, wb) => {
             for i in 0..wa {
-                let row = &mut values[slot + i * stride..slot + i * stride + wb];
+                let row = &mut values[slot + i * wb..slot + i * wb + wb];
                 for (j, x) in row.iter_mut().enumerate() {
                     let mut dot = 0.0;
                     for k in 0..K {
-                        dot += a[(ra + i, k)] * b[(rb + j, k)];
+                        dot += a.m[(a.first + i, k)] * b.m[(b.first + j, k)];
                     }
                     *x += sign * dot;
                 }
@@ -884,17 +882,17 @@ fn accumulate<const K: usize>(
     }
 }
 
+fn rows<const K: usize>(m: &SMatrix<f64, MAX_DC, K>, first: usize, count: usize) -> Rows<'_, K> {
+    Rows { m, first, count }
+}
+
 /// [`accumulate`] for a `WA x WB` block.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn accumulate_fixed<const K: usize, const WA: usize, const WB: usize>(
     values: &mut [f64],
     slot: usize,
-    stride: usize,
-    a: &SMatrix<f64, MAX_DC, K>,
-    ra: usize,
-    b: &SMatrix<f64, MAX_DC, K>,
-    rb: usize,
+    a: Rows<K>,
+    b: Rows<K>,
     sign: f64,
 ) {
     let mut block = [[0.0f64; WB]; WA];
@@ -902,13 +900,13 @@ fn accumulate_fixed<const K: usize, const WA: usize, const WB: usize>(
         for (j, x) in out.iter_mut().enumerate() {
             let mut dot = 0.0;
             for k in 0..K {
-                dot += a[(ra + i, k)] * b[(rb + j, k)];
+                dot += a.m[(a.first + i, k)] * b.m[(b.first + j, k)];
             }
             *x = sign * dot;
         }
     }
     for (i, out) in block.iter().enumerate() {
-        let row = &mut values[slot + i * stride..slot + i * stride + WB];
+        let row = &mut values[slot + i * WB..slot + i * WB + WB];
         for (x, v) in row.iter_mut().zip(out) {
             *x += v;
         }
@@ -977,16 +975,14 @@ pub(super) fn schur(
                             for &(gb, cb, wb) in &pj[..nj] {
                                 if ga <= gb {
                                     let slot = pattern.slot(ga, gb);
-                                    accumulate(
-                                        &mut s, slot, wb, &y[i], ca, wa, &w[j], cb, wb, -1.0,
-                                    );
+                                    let (ra, rb) = (rows(&y[i], ca, wa), rows(&w[j], cb, wb));
+                                    accumulate(&mut s, slot, ra, rb, -1.0);
                                 }
                                 // The (j, i) term, Y_j W_i^T = (Y_i W_j^T)^T, lands in block (gb, ga).
                                 if i != j && gb <= ga {
                                     let slot = pattern.slot(gb, ga);
-                                    accumulate(
-                                        &mut s, slot, wa, &y[j], cb, wb, &w[i], ca, wa, -1.0,
-                                    );
+                                    let (ra, rb) = (rows(&y[j], cb, wb), rows(&w[i], ca, wa));
+                                    accumulate(&mut s, slot, ra, rb, -1.0);
                                 }
                             }
                         }
