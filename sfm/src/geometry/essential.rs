@@ -595,8 +595,9 @@ impl Estimator for EssentialEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::fundamental::tests::{Lcg, Scene, projective_distance};
+    use crate::geometry::fundamental::tests::{Scene, projective_distance};
     use crate::geometry::ransac::{RansacConfig, ransac};
+    use fresco_core::Rng;
     use nalgebra::Point2;
 
     /// Pixels to normalised coordinates with the scene's K.
@@ -721,7 +722,7 @@ mod tests {
     fn ransac_with_noise_and_outliers() {
         let scene = Scene::new(21, 300, false);
         let mut pixels = scene.pixels(1.0, 4);
-        let mut rng = Lcg(5);
+        let mut rng = Rng::new(5);
         // 40% outliers.
         for c in pixels.iter_mut().take(120) {
             c.x2 = Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0));
@@ -739,13 +740,18 @@ mod tests {
         let before = rotation_error_deg(&pose, &scene.cam2_from_cam1);
         let pose = refine_relative_pose(&pose, &inliers, 1.0 / 800.0, 30);
         // 1 px noise, 180 inliers, an 800 px focal and a baseline of ~0.15 rad seen from the
-        // points: the least-squares rotation is off by about 0.05 deg (0.06 here when started
-        // from the truth); 0.2 deg leaves margin. The RANSAC model itself (a minimal sample
-        // plus local optimisation) is within 1 deg. The direction of translation is less well
-        // determined (0.1 rad of margin).
+        // points: the least-squares rotation itself is off by 0.2 deg RMS (measured over ten
+        // noise draws of this scene: 0.02-0.36 deg), so the claim is that RANSAC and the
+        // refinement reach that least-squares optimum (the refinement started from the truth
+        // ends within 0.01 deg of it), and stay within 3 RMS of the truth. The RANSAC model
+        // itself (a minimal sample plus local optimisation) is within 1 deg. The direction of
+        // translation is less well determined (0.1 rad of margin).
         assert!(before < 1.0, "RANSAC rotation error {before} deg");
+        let optimum = refine_relative_pose(&scene.cam2_from_cam1, &inliers, 1.0 / 800.0, 30);
+        let to_optimum = rotation_error_deg(&pose, &optimum);
+        assert!(to_optimum < 0.01, "{to_optimum} deg from the least-squares optimum");
         let rot = rotation_error_deg(&pose, &scene.cam2_from_cam1);
-        assert!(rot < 0.2, "rotation error {rot} deg");
+        assert!(rot < 0.6, "rotation error {rot} deg");
         let t = scene.cam2_from_cam1.translation.normalize();
         assert!(pose.translation.angle(&t) < 0.1);
         assert!(r.inliers[120..].iter().filter(|&&b| b).count() >= 175);

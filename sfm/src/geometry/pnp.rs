@@ -542,8 +542,9 @@ fn inliers_of(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synthetic::{SplitMix, look_at_origin};
+    use crate::synthetic::look_at_origin;
     use fresco_core::CameraModel;
+    use fresco_core::Rng;
 
     fn camera(f: f64, k: f64) -> Camera {
         Camera {
@@ -564,7 +565,7 @@ mod tests {
         outliers: f64,
         seed: u64,
     ) -> (Vec<Vector2<f64>>, Vec<Vector3<f64>>, CamFromWorld) {
-        let mut rng = SplitMix::new(seed);
+        let mut rng = Rng::new(seed);
         let pose = look_at_origin(Vector3::new(3.0, -2.5, 1.2));
         let mut px = Vec::new();
         let mut wd = Vec::new();
@@ -597,7 +598,7 @@ mod tests {
     /// true pose.
     #[test]
     fn p3p_recovers_true_pose_among_solutions() {
-        let mut rng = SplitMix::new(9);
+        let mut rng = Rng::new(9);
         for _ in 0..200 {
             let pose = look_at_origin(
                 Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize() * 4.0,

@@ -295,8 +295,9 @@ pub fn triangulate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synthetic::{SplitMix, look_at_origin};
+    use crate::synthetic::look_at_origin;
     use fresco_core::CameraModel;
+    use fresco_core::Rng;
 
     fn camera() -> Camera {
         Camera {
@@ -351,7 +352,7 @@ mod tests {
     fn refinement_minimises_pixel_error() {
         let cam = camera();
         let ps = poses(5, 8.0);
-        let mut rng = SplitMix::new(4);
+        let mut rng = Rng::new(4);
         let mut wins = 0;
         for _ in 0..50 {
             let x = Vector3::new(

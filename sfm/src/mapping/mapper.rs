@@ -1983,8 +1983,9 @@ pub fn input_from_tracks(rec: &Reconstruction) -> MapperInput {
 mod tests {
     use super::*;
     use crate::evaluate::evaluate_poses;
-    use crate::synthetic::{SplitMix, SyntheticConfig, look_at_origin, synthetic_reconstruction};
+    use crate::synthetic::{SyntheticConfig, look_at_origin, synthetic_reconstruction};
     use fresco_core::NoProgress;
+    use fresco_core::Rng;
     use nalgebra::UnitQuaternion;
 
     fn config() -> MapperConfig {
@@ -2201,7 +2202,7 @@ mod tests {
             ..Default::default()
         });
         rec.points3d.clear();
-        let mut rng = SplitMix::new(5);
+        let mut rng = Rng::new(5);
         let cam = rec.cameras[&1].clone();
         rec.images.clear();
         for i in 0..6u32 {

@@ -746,10 +746,10 @@ mod simd {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::geometry::fundamental::tests::Lcg;
+    use fresco_core::Rng;
 
     pub(crate) fn random_descriptors(n: usize, seed: u64) -> Vec<Descriptor> {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         (0..n)
             .map(|_| std::array::from_fn(|_| (rng.uniform() * 120.0) as u8))
             .collect()
@@ -797,7 +797,7 @@ pub(crate) mod tests {
         // unrelated ones: three query blocks and two candidate blocks, neither a multiple of
         // the block sizes, so every tail path runs.
         let d1 = random_descriptors(603, 1);
-        let mut rng = Lcg(2);
+        let mut rng = Rng::new(2);
         let mut d2 = random_descriptors(1100, 3);
         for d in d1.iter().take(450) {
             d2.push(d.map(|v| (v as f64 + rng.range(-6.0, 6.0)).clamp(0.0, 255.0) as u8));
@@ -835,7 +835,7 @@ pub(crate) mod tests {
         // around the tile, lane and task widths, and exact ties: duplicated candidates (equal
         // best and second best: rejected by the ratio test) and duplicated queries (equal
         // column distances: the lower query wins the mutual check).
-        let mut rng = Lcg(11);
+        let mut rng = Rng::new(11);
         let mut wide = |n: usize| -> Vec<Descriptor> {
             (0..n)
                 .map(|_| std::array::from_fn(|_| (rng.uniform() * 256.0).min(255.0) as u8))

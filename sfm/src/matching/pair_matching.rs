@@ -226,9 +226,9 @@ fn epipolar_geometry(geometry: &TwoViewGeometry, priors: [&FocalPrior; 2]) -> Op
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::fundamental::tests::Lcg;
     use crate::matching::descriptor_matching::tests::random_descriptors;
     use crate::matching::pair_selection::{PairSelection, select_pairs};
+    use fresco_core::Rng;
 
     #[test]
     fn match_pairs_on_a_synthetic_scene() {
@@ -244,7 +244,7 @@ mod tests {
         let scene = Scene::new(12, 300, false);
         let pixels = scene.pixels(0.3, 2);
         let base = random_descriptors(300, 4);
-        let mut rng = Lcg(6);
+        let mut rng = Rng::new(6);
         let mut noisy =
             |d: &Descriptor| d.map(|v| (v as f64 + rng.range(-5.0, 5.0)).clamp(0.0, 255.0) as u8);
         let kp = |x: f64, y: f64| Keypoint {

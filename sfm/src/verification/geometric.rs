@@ -353,7 +353,8 @@ pub fn rotation_of_homography(hn: &Matrix3<f64>, min_ratio: f64) -> Option<UnitQ
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::fundamental::tests::{Lcg, Scene};
+    use crate::geometry::fundamental::tests::Scene;
+    use fresco_core::Rng;
 
     fn prior(source: FocalSource) -> FocalPrior {
         FocalPrior {
@@ -372,7 +373,7 @@ mod tests {
         let data = scene.pixels(0.5, 1);
         let mut x1: Vec<_> = data.iter().map(|c| c.x1).collect();
         let mut x2: Vec<_> = data.iter().map(|c| c.x2).collect();
-        let mut rng = Lcg(3);
+        let mut rng = Rng::new(3);
         for _ in 0..outliers {
             x1.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
             x2.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
@@ -477,8 +478,8 @@ mod tests {
 
     #[test]
     fn random_matches_are_degenerate() {
-        let mut rng = Lcg(8);
-        let pts = |rng: &mut Lcg| -> Vec<Point2<f64>> {
+        let mut rng = Rng::new(8);
+        let pts = |rng: &mut Rng| -> Vec<Point2<f64>> {
             (0..100)
                 .map(|_| Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)))
                 .collect()
