@@ -749,7 +749,10 @@ mod tests {
         assert!(before < 1.0, "RANSAC rotation error {before} deg");
         let optimum = refine_relative_pose(&scene.cam2_from_cam1, &inliers, 1.0 / 800.0, 30);
         let to_optimum = rotation_error_deg(&pose, &optimum);
-        assert!(to_optimum < 0.01, "{to_optimum} deg from the least-squares optimum");
+        assert!(
+            to_optimum < 0.01,
+            "{to_optimum} deg from the least-squares optimum"
+        );
         let rot = rotation_error_deg(&pose, &scene.cam2_from_cam1);
         assert!(rot < 0.6, "rotation error {rot} deg");
         let t = scene.cam2_from_cam1.translation.normalize();

@@ -84,12 +84,10 @@ pub enum SfmError {
     Photo(#[from] PhotoError),
     #[error("{path}: {message}")]
     Workspace { path: PathBuf, message: String },
-    #[error("camera for {image}: {source}")]
-    Camera {
-        image: String,
-        #[source]
-        source: CameraError,
-    },
+    /// The inner error is shown in the message, so it is not also the `source` (the
+    /// workspace rule: one or the other, never both).
+    #[error("camera for {image}: {error}")]
+    Camera { image: String, error: CameraError },
     #[error(transparent)]
     Mapper(#[from] MapperError),
     #[error(transparent)]
@@ -175,9 +173,9 @@ fn camera_from_prior(id: u32, model: CameraModel, im: &ImageEntry) -> Result<Cam
     let [cx, cy] = model.principal_point_idxs();
     params[cx] = im.prior.cx;
     params[cy] = im.prior.cy;
-    Camera::new(id, model, im.width, im.height, params).map_err(|source| SfmError::Camera {
+    Camera::new(id, model, im.width, im.height, params).map_err(|error| SfmError::Camera {
         image: im.name.clone(),
-        source,
+        error,
     })
 }
 
@@ -698,4 +696,44 @@ pub fn read_reference(path: &Path, model: &Reconstruction) -> Result<Reconstruct
         return Ok(fresco_core::middlebury::views_to_reconstruction(&views));
     }
     read_model_or_workspace(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::focal_prior::FocalPrior;
+
+    /// A focal prior that is not a number gives an error naming the photo and saying what is
+    /// wrong once: the camera error is in the message and not also a source, so a reporter
+    /// that prints the chain (anyhow's `{:#}`) does not repeat it.
+    #[test]
+    fn a_bad_camera_is_reported_once() {
+        let image = ImageEntry {
+            id: 1,
+            name: "a.png".into(),
+            path: "a.png".into(),
+            width: 640,
+            height: 480,
+            num_keypoints: 0,
+            prior: FocalPrior {
+                focal_x: f64::NAN,
+                focal_y: f64::NAN,
+                cx: 320.0,
+                cy: 240.0,
+                source: FocalSource::Default,
+            },
+            exif_orientation: None,
+            camera_make: None,
+            camera_model: None,
+        };
+        let e = camera_from_prior(1, CameraModel::SimpleRadial, &image).unwrap_err();
+        assert!(matches!(e, SfmError::Camera { .. }), "{e:?}");
+        assert!(std::error::Error::source(&e).is_none());
+        let message = e.to_string();
+        let SfmError::Camera { error, .. } = &e else {
+            unreachable!()
+        };
+        assert!(message.starts_with("camera for a.png: "), "{message}");
+        assert_eq!(message.matches(&error.to_string()).count(), 1, "{message}");
+    }
 }
