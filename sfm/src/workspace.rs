@@ -41,6 +41,10 @@ pub struct ImageEntry {
     pub exif_orientation: Option<u8>,
     pub camera_make: Option<String>,
     pub camera_model: Option<String>,
+    /// The SIFT contrast threshold the keypoints were detected at (adaptive detection lowers
+    /// it for weakly textured photos); absent in workspaces written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contrast_threshold: Option<f32>,
 }
 
 /// The contents of `images.json`.

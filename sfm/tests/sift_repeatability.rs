@@ -115,6 +115,8 @@ fn warp_bilinear(
 fn detect(img: &[u8], w: usize, h: usize) -> (Vec<(f64, f64)>, Features) {
     let config = SiftConfig {
         max_features: 0,
+        // OpenCV's detector has one fixed threshold: no adaptive detection.
+        min_features_per_megapixel: 0,
         detector: DetectorConfig::opencv(),
         ..Default::default()
     };

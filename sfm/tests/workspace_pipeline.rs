@@ -55,6 +55,7 @@ fn write_workspace(ws: &Path, scenes: &[&Reconstruction]) {
                 exif_orientation: None,
                 camera_make: None,
                 camera_model: None,
+                contrast_threshold: None,
             });
             let features = Features {
                 width: cam.width,

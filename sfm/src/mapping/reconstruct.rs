@@ -725,6 +725,7 @@ mod tests {
             exif_orientation: None,
             camera_make: None,
             camera_model: None,
+            contrast_threshold: None,
         };
         let e = camera_from_prior(1, CameraModel::SimpleRadial, &image).unwrap_err();
         assert!(matches!(e, SfmError::Camera { .. }), "{e:?}");

@@ -74,6 +74,7 @@ pub fn prepare_workspace_with_calibration(
                 exif_orientation: None,
                 camera_make: None,
                 camera_model: None,
+                contrast_threshold: None,
             }
         })
         .collect();
