@@ -76,7 +76,8 @@ pub fn run(args: MatchArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
         images: list,
         pairs: verified,
     } = match_workspace(ws, &config, &bars)
-        .with_context(|| format!("matching workspace {}", ws.display()))?;
+        // The error names the file at fault: the context does not name the folder again.
+        .context("matching the workspace")?;
     let out = matches_path(ws);
     let kept: Vec<_> = verified
         .iter()
