@@ -19,6 +19,7 @@
 //! and one translation coordinate of a second camera (the coordinate most sensitive to the
 //! scale), as COLMAP does, unless enough poses are constant already.
 
+use fresco_core::config::{ConfigError, require};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Instant;
 
@@ -49,25 +50,27 @@ pub enum LinearSolver {
 /// Bundle adjustment settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct BundleConfig {
-    /// Robust loss on the reprojection error, scale in pixels. Default Huber(2 px): residuals
-    /// of a well-matched feature (about 1 px) stay quadratic, mismatches pull linearly.
+    /// Robust loss on the reprojection error, scale in pixels. Default: `Huber(2.0)` (2 px):
+    /// residuals of a well-matched feature (about 1 px) stay quadratic, mismatches pull
+    /// linearly.
     pub loss: Loss,
-    /// Refine focal lengths. Default true.
+    /// Refine focal lengths. Default: `true`.
     pub refine_focal: bool,
-    /// Refine the principal point. Default false: it is poorly constrained without a
+    /// Refine the principal point. Default: `false`: it is poorly constrained without a
     /// calibration pattern and trades off against the pose (COLMAP's default too).
     pub refine_principal_point: bool,
-    /// Refine distortion parameters (k1, k2, p1, p2 as the model has them). Default true.
+    /// Refine distortion parameters (k1, k2, p1, p2 as the model has them). Default: `true`.
     pub refine_distortion: bool,
-    /// Most Levenberg–Marquardt iterations (accepted or rejected steps). Default 100.
+    /// Most Levenberg–Marquardt iterations (accepted or rejected steps). Default: `100`.
     pub max_iterations: usize,
-    /// Stop when an accepted step lowers the cost by less than this fraction. Default 1e-6.
+    /// Stop when an accepted step lowers the cost by less than this fraction. Default: `1e-6`.
     pub function_tolerance: f64,
-    /// Stop when the largest gradient entry falls below this. Default 1e-10.
+    /// Stop when the largest gradient entry falls below this. Default: `1e-10`.
     pub gradient_tolerance: f64,
-    /// Stop when the step is smaller than this fraction of the parameter norm. Default 1e-8.
+    /// Stop when the step is smaller than this fraction of the parameter norm. Default: `1e-8`.
     pub parameter_tolerance: f64,
     /// Reduced camera system solver. Default `Auto { dense_limit: 300 }`.
+    /// Default: `Auto { dense_limit: 300 }`.
     pub linear_solver: LinearSolver,
 }
 
@@ -84,6 +87,33 @@ impl Default for BundleConfig {
             parameter_tolerance: 1e-8,
             linear_solver: LinearSolver::Auto { dense_limit: 300 },
         }
+    }
+}
+
+impl BundleConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        for (name, value) in [
+            ("function_tolerance", self.function_tolerance),
+            ("gradient_tolerance", self.gradient_tolerance),
+            ("parameter_tolerance", self.parameter_tolerance),
+        ] {
+            require(
+                value.is_finite() && value >= 0.0,
+                name,
+                value,
+                "finite and >= 0",
+            )?;
+        }
+        if let LinearSolver::Auto { dense_limit } = self.linear_solver {
+            require(
+                dense_limit >= 1,
+                "linear_solver.dense_limit",
+                dense_limit,
+                ">= 1",
+            )?;
+        }
+        Ok(())
     }
 }
 

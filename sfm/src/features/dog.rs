@@ -3,6 +3,7 @@
 //! (|D(x̂)| below `contrast_threshold / s`, OpenCV's scaling of Lowe's 0.03 to the number of
 //! intervals) and edge rejection by the Hessian ratio (eq. 4, r = 10).
 
+use fresco_core::config::{ConfigError, require};
 use rayon::prelude::*;
 
 use crate::features::scale_space::ScaleSpace;
@@ -10,15 +11,18 @@ use crate::features::scale_space::ScaleSpace;
 /// Detector thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DetectorConfig {
-    /// Minimum |D(x̂)| times the number of intervals, for grey in [0, 1]. Default 0.02,
+    /// Minimum |D(x̂)| times the number of intervals, for grey in [0, 1]. Default: `0.02`,
     /// COLMAP's (its `peak_threshold` 0.02 / 3 intervals); OpenCV's `contrastThreshold` is
     /// 0.04, which keeps about half as many keypoints (see [`DetectorConfig::opencv`]).
     pub contrast_threshold: f32,
     /// Maximum ratio of principal curvatures `r` (Lowe: 10).
+    /// Default: `10.0`.
     pub edge_threshold: f32,
     /// Samples this close to an octave's border are not searched (the descriptor needs room).
+    /// Default: `5`.
     pub border: usize,
     /// Refinement steps before a wandering extremum is dropped (Lowe: 5).
+    /// Default: `5`.
     pub max_refine_steps: usize,
 }
 
@@ -30,6 +34,30 @@ impl Default for DetectorConfig {
             border: 5,
             max_refine_steps: 5,
         }
+    }
+}
+
+impl DetectorConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.contrast_threshold.is_finite() && self.contrast_threshold >= 0.0,
+            "contrast_threshold",
+            self.contrast_threshold,
+            "finite and >= 0",
+        )?;
+        require(
+            self.edge_threshold.is_finite() && self.edge_threshold > 1.0,
+            "edge_threshold",
+            self.edge_threshold,
+            "finite and > 1 (a ratio of principal curvatures)",
+        )?;
+        require(
+            self.max_refine_steps >= 1,
+            "max_refine_steps",
+            self.max_refine_steps,
+            ">= 1",
+        )
     }
 }
 

@@ -12,6 +12,7 @@
 //! Work inside one image runs on rayon (blur rows, DoG rows, keypoints); callers extracting many
 //! images can also run [`extract_features`] from several rayon tasks.
 
+use fresco_core::config::{ConfigError, require};
 use std::path::Path;
 
 use fresco_core::photo::{GreyImage, PhotoError, load_photo};
@@ -28,25 +29,32 @@ use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space, downscal
 pub struct SiftConfig {
     /// Keep at most this many keypoints, the strongest by |DoG| response (COLMAP: 8192);
     /// 0 keeps all.
+    /// Default: `8192`.
     pub max_features: usize,
     /// All orientations 0 (for photos known to be upright): no rotation invariance, fewer
     /// ambiguities.
+    /// Default: `false`.
     pub upright: bool,
     /// Store RootSIFT descriptors instead of SIFT.
+    /// Default: `false`.
     pub root_sift: bool,
     /// Images whose longer side exceeds this are down-scaled first (COLMAP: 3200); 0 never.
+    /// Default: `3200`.
     pub max_image_size: usize,
     /// Keypoint locations wanted per megapixel of the searched image: below it the contrast
-    /// threshold is lowered for that photo (see the module documentation). Default 2000 (a
+    /// threshold is lowered for that photo (see the module documentation). Default: `2000` (a
     /// 640x480 photo: 614; the bundled sets have 1700-4000 per megapixel at the default
     /// threshold, so they are untouched). At most `max_features`; 0 never lowers it.
     pub min_features_per_megapixel: usize,
-    /// The lowest contrast threshold adaptive detection goes down to. Default 0.0025 (the
+    /// The lowest contrast threshold adaptive detection goes down to. Default: `0.0025` (the
     /// default 0.02 halved three times): below it, on 8-bit photos, DoG extrema come from
     /// quantisation and sensor noise rather than from the scene.
     pub min_contrast_threshold: f32,
+    /// Default: `ScaleSpaceConfig::default()`.
     pub scale_space: ScaleSpaceConfig,
+    /// Default: `DetectorConfig::default()`.
     pub detector: DetectorConfig,
+    /// Default: `OrientationConfig::default()`.
     pub orientation: OrientationConfig,
 }
 
@@ -63,6 +71,31 @@ impl Default for SiftConfig {
             detector: DetectorConfig::default(),
             orientation: OrientationConfig::default(),
         }
+    }
+}
+
+impl SiftConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.max_image_size == 0 || self.max_image_size >= MIN_IMAGE_SIDE,
+            "max_image_size",
+            self.max_image_size,
+            &format!("0 (never down-scale) or >= {MIN_IMAGE_SIDE}"),
+        )?;
+        require(
+            self.min_contrast_threshold.is_finite() && self.min_contrast_threshold >= 0.0,
+            "min_contrast_threshold",
+            self.min_contrast_threshold,
+            "finite and >= 0",
+        )?;
+        self.scale_space
+            .check()
+            .map_err(|e| e.within("scale_space"))?;
+        self.detector.check().map_err(|e| e.within("detector"))?;
+        self.orientation
+            .check()
+            .map_err(|e| e.within("orientation"))
     }
 }
 

@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use fresco_core::config::ConfigError;
 use fresco_core::photo::load_photo;
 use fresco_core::{FormatError, Progress};
 use rayon::prelude::*;
@@ -24,9 +25,17 @@ use crate::workspace::{IMAGES_VERSION, ImageEntry, ImageList, features_path, wri
 /// Settings of the features stage.
 #[derive(Clone, Debug, Default)]
 pub struct FeaturesConfig {
+    /// Default: `SiftConfig::default()`.
     pub sift: SiftConfig,
-    /// Calibration matrix (3x3, `K.txt`) shared by every photo; overrides EXIF. Default none.
+    /// Calibration matrix (3x3, `K.txt`) shared by every photo; overrides EXIF. Default: `None`.
     pub calibration_file: Option<PathBuf>,
+}
+
+impl FeaturesConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.sift.check().map_err(|e| e.within("sift"))
+    }
 }
 
 /// One photo's figures.
@@ -77,6 +86,8 @@ pub enum FeaturesError {
     },
     #[error(transparent)]
     Format(#[from] FormatError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// The photos of `dir` (by extension: png, jpg, jpeg), sorted by file name.
@@ -108,6 +119,7 @@ pub fn extract_photo_folder(
     config: &FeaturesConfig,
     progress: &dyn Progress,
 ) -> Result<FeaturesSummary, FeaturesError> {
+    config.check()?;
     let start = Instant::now();
     if !photos.is_dir() {
         return Err(FeaturesError::Folder {

@@ -52,20 +52,20 @@ pub trait Estimator {
 /// RANSAC settings. Defaults follow COLMAP's two-view geometry defaults where they exist.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RansacConfig {
-    /// Inlier threshold on the error (not squared), in the estimator's units. Default 4.0 (pixels).
+    /// Inlier threshold on the error (not squared), in the estimator's units. Default: `4.0` (pixels).
     pub max_error: f64,
-    /// Probability that at least one all-inlier sample was drawn when the loop stops. Default 0.999.
+    /// Probability that at least one all-inlier sample was drawn when the loop stops. Default: `0.999`.
     pub confidence: f64,
     /// The smallest inlier ratio worth finding: bounds the iteration count at
-    /// `N(min_inlier_ratio)` when that is below `max_iterations`. Default 0.1.
+    /// `N(min_inlier_ratio)` when that is below `max_iterations`. Default: `0.1`.
     pub min_inlier_ratio: f64,
-    /// At least this many samples are drawn. Default 0.
+    /// At least this many samples are drawn. Default: `0`.
     pub min_iterations: usize,
-    /// At most this many samples are drawn. Default 10000.
+    /// At most this many samples are drawn. Default: `10000`.
     pub max_iterations: usize,
-    /// Local optimisation (LO-RANSAC) with `fit_nonminimal` on each new best model. Default true.
+    /// Local optimisation (LO-RANSAC) with `fit_nonminimal` on each new best model. Default: `true`.
     pub local_optimisation: bool,
-    /// Seed of the sampler. Default 0.
+    /// Seed of the sampler. Default: `0`.
     pub seed: u64,
 }
 

@@ -29,6 +29,7 @@
 //!    again. Models are returned largest first; input that cannot start any model is reported
 //!    as degenerate, with the reason.
 
+use fresco_core::config::{ConfigError, require};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
@@ -84,33 +85,36 @@ pub struct MapperInput {
 /// Mapper settings; defaults follow COLMAP's incremental mapper where it has one.
 #[derive(Clone, Debug, Serialize)]
 pub struct MapperConfig {
-    /// Fewest verified inliers of an initial pair. Default 100.
+    /// Fewest verified inliers of an initial pair. Default: `100`.
     pub init_min_inliers: usize,
-    /// Smallest median triangulation angle of an initial pair, degrees. Default 16 (COLMAP's);
+    /// Smallest median triangulation angle of an initial pair, degrees. Default: `16.0` (COLMAP's);
     /// halved once if no pair reaches it.
     pub init_min_angle_deg: f64,
-    /// Fewest points the initial pair must triangulate. Default 50.
+    /// Fewest points the initial pair must triangulate. Default: `50`.
     pub init_min_points: usize,
-    /// Most initial pairs tried per model. Default 50.
+    /// Most initial pairs tried per model. Default: `50`.
     pub init_max_trials: usize,
+    /// Default: `TriangulationConfig::default()`.
     pub triangulation: TriangulationConfig,
+    /// Default: `PnpConfig::default()`.
     pub pnp: PnpConfig,
-    /// Largest reprojection error of a kept observation after adjustment, pixels. Default 4.
+    /// Largest reprojection error of a kept observation after adjustment, pixels. Default: `4.0`.
     pub filter_max_error_px: f64,
-    /// Smallest triangulation angle of a kept point, degrees. Default 1.5.
+    /// Smallest triangulation angle of a kept point, degrees. Default: `1.5`.
     pub filter_min_angle_deg: f64,
-    /// Neighbours adjusted with a newly registered image. Default 6.
+    /// Neighbours adjusted with a newly registered image. Default: `6`.
     pub local_ba_images: usize,
     /// A global adjustment runs when the registered images grew by this factor since the
     /// last one (COLMAP's 1.1), and always at the end.
+    /// Default: `1.1`.
     pub global_ba_growth: f64,
-    /// Most Levenberg–Marquardt iterations of a local adjustment. Default 25 (COLMAP's).
+    /// Most Levenberg–Marquardt iterations of a local adjustment. Default: `25` (COLMAP's).
     pub local_ba_max_iterations: usize,
-    /// Most iterations of a global adjustment while the model grows. Default 50 (COLMAP's);
+    /// Most iterations of a global adjustment while the model grows. Default: `50` (COLMAP's);
     /// the final one runs to `bundle.max_iterations`.
     pub global_ba_max_iterations: usize,
     /// Relative cost decrease that ends the local adjustments and the global ones while the
-    /// model grows. Default 1e-4: they only need the poses well inside the 4 px thresholds
+    /// model grows. Default: `0.0001`: they only need the poses well inside the 4 px thresholds
     /// of registration and triangulation, and the model's final global adjustment converges
     /// to `bundle.function_tolerance` (1e-6). Halves the adjustment iterations with the
     /// same final poses (templeSparseRing, sceaux_castle: within 0.01 deg).
@@ -122,21 +126,22 @@ pub struct MapperConfig {
     /// weighs linearly. Measured on templeSparseRing with the true calibration: median
     /// rotation 0.27 -> 0.17 deg, centre 0.21% -> 0.15% of the diameter; sceaux against
     /// COLMAP: rotation 0.14 -> 0.03 deg.
+    /// Default: `BundleConfig::default() with loss Cauchy(1.0)`.
     pub bundle: BundleConfig,
-    /// Smallest model kept (registered images). Default 3.
+    /// Smallest model kept (registered images). Default: `3`.
     pub min_model_images: usize,
-    /// Most models built. Default 10.
+    /// Most models built. Default: `10`.
     pub max_models: usize,
     /// The initial intrinsics are trusted (a K file): the focal length is not searched in
-    /// PnP and the intrinsics stay fixed in every adjustment. Default false (only a prior).
+    /// PnP and the intrinsics stay fixed in every adjustment. Default: `false` (only a prior).
     pub calibrated: bool,
     /// When no image registers any more, the model is adjusted globally, retriangulated, and
     /// every unregistered image is tried again accepting this many PnP inliers (COLMAP lowers
-    /// its threshold the same way on retry). Default 15: 5 minimal P3P samples' worth, and the
+    /// its threshold the same way on retry). Default: `15`: 5 minimal P3P samples' worth, and the
     /// pose must also satisfy `retry_min_inlier_ratio` and explain those inliers within
     /// `filter_max_error_px` after refinement, which a pose fitted to a few mismatches cannot.
     pub retry_min_inliers: usize,
-    /// Smallest inlier fraction of a relaxed registration. Default 0.25, the normal one
+    /// Smallest inlier fraction of a relaxed registration. Default: `0.25`, the normal one
     /// (COLMAP's `abs_pose_min_inlier_ratio`): the relaxed pose must still explain its inliers
     /// within `filter_max_error_px` after refinement. With 0.5, templeSparseRing without
     /// calibration lost its three weakest-tied images once the features doubled (image 14: 22
@@ -144,11 +149,12 @@ pub struct MapperConfig {
     /// matches passed verification).
     pub retry_min_inlier_ratio: f64,
     /// Fewest common points, consistent with one similarity, for two models to be merged
-    /// (at least half of their common points must be). Default 10: three times the minimal
-    /// sample, each point checked by reprojection in at least two images of each model.
+    /// (at least half of their common points must be). Default: `6`: twice the minimal
+    /// sample of a similarity (3 points), each point checked by reprojection in at least two
+    /// images of each model.
     pub merge_min_points: usize,
     /// Largest reprojection error of a common point moved into the other model, pixels.
-    /// Default 8: the two models have not been adjusted together yet, so their drift adds to
+    /// Default: `8.0`: the two models have not been adjusted together yet, so their drift adds to
     /// the 4 px kept after adjustment.
     pub merge_max_error_px: f64,
 }
@@ -181,6 +187,96 @@ impl Default for MapperConfig {
             merge_min_points: 6,
             merge_max_error_px: 8.0,
         }
+    }
+}
+
+impl MapperConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.init_min_inliers >= 5,
+            "init_min_inliers",
+            self.init_min_inliers,
+            ">= 5 (the five-point sample)",
+        )?;
+        require(
+            (0.0..180.0).contains(&self.init_min_angle_deg),
+            "init_min_angle_deg",
+            self.init_min_angle_deg,
+            "in [0, 180)",
+        )?;
+        require(
+            self.init_min_points >= 1,
+            "init_min_points",
+            self.init_min_points,
+            ">= 1",
+        )?;
+        require(
+            self.init_max_trials >= 1,
+            "init_max_trials",
+            self.init_max_trials,
+            ">= 1",
+        )?;
+        self.triangulation
+            .check()
+            .map_err(|e| e.within("triangulation"))?;
+        self.pnp.check().map_err(|e| e.within("pnp"))?;
+        for (name, value) in [
+            ("filter_max_error_px", self.filter_max_error_px),
+            ("merge_max_error_px", self.merge_max_error_px),
+        ] {
+            require(
+                value.is_finite() && value > 0.0,
+                name,
+                value,
+                "finite and > 0",
+            )?;
+        }
+        require(
+            (0.0..90.0).contains(&self.filter_min_angle_deg),
+            "filter_min_angle_deg",
+            self.filter_min_angle_deg,
+            "in [0, 90)",
+        )?;
+        require(
+            self.global_ba_growth.is_finite() && self.global_ba_growth >= 1.0,
+            "global_ba_growth",
+            self.global_ba_growth,
+            "finite and >= 1",
+        )?;
+        require(
+            self.intermediate_function_tolerance.is_finite()
+                && self.intermediate_function_tolerance >= 0.0,
+            "intermediate_function_tolerance",
+            self.intermediate_function_tolerance,
+            "finite and >= 0",
+        )?;
+        self.bundle.check().map_err(|e| e.within("bundle"))?;
+        require(
+            self.min_model_images >= 2,
+            "min_model_images",
+            self.min_model_images,
+            ">= 2",
+        )?;
+        require(self.max_models >= 1, "max_models", self.max_models, ">= 1")?;
+        require(
+            self.retry_min_inliers >= 4,
+            "retry_min_inliers",
+            self.retry_min_inliers,
+            ">= 4 (P3P's sample and one check)",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.retry_min_inlier_ratio),
+            "retry_min_inlier_ratio",
+            self.retry_min_inlier_ratio,
+            "in [0, 1]",
+        )?;
+        require(
+            self.merge_min_points >= 3,
+            "merge_min_points",
+            self.merge_min_points,
+            ">= 3 (a similarity's sample)",
+        )
     }
 }
 
@@ -260,6 +356,8 @@ pub enum MapperError {
     },
     #[error(transparent)]
     Bundle(#[from] BundleError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1832,6 +1930,7 @@ pub fn map(
     config: &MapperConfig,
     progress: &dyn Progress,
 ) -> Result<MapperOutput, MapperError> {
+    config.check()?;
     let ctx = MapperContext::new(input, config)?;
     progress.begin("mapping", input.images.len() as u64);
     let mut used: BTreeSet<u32> = BTreeSet::new();

@@ -12,6 +12,7 @@
 //!   [`SfmSummary`];
 //! - [`read_model_or_workspace`], [`read_reference`]: the inputs of `fresco eval poses`.
 
+use fresco_core::config::ConfigError;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -50,16 +51,19 @@ pub enum CameraMode {
 /// Settings of the sfm stage.
 #[derive(Clone, Debug)]
 pub struct SfmConfig {
-    /// Camera model of every camera. Default SIMPLE_RADIAL (COLMAP's default).
+    /// Camera model of every camera. Default: `SimpleRadial` (COLMAP's default).
     pub camera_model: CameraModel,
-    /// Default [`CameraMode::Auto`].
+    /// How photos share cameras. Default: `Auto` ([`CameraMode::Auto`]).
     pub camera_mode: CameraMode,
+    /// Default: `MapperConfig::default()`.
     pub mapper: MapperConfig,
     /// Folder of object masks (`<image name>.png`, `<stem>.png` or `<image name>`): silhouette
-    /// points join the main model before a final global adjustment. Default none.
+    /// points join the main model before a final global adjustment. Default: `None`.
     pub masks: Option<PathBuf>,
+    /// Default: `SilhouetteConfig::default()`.
     pub silhouette: SilhouetteConfig,
     /// Sample keypoint colours from the photos (default true; false: grey points).
+    /// Default: `true`.
     pub colours: bool,
 }
 
@@ -76,6 +80,14 @@ impl Default for SfmConfig {
     }
 }
 
+impl SfmConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.mapper.check().map_err(|e| e.within("mapper"))?;
+        self.silhouette.check().map_err(|e| e.within("silhouette"))
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum SfmError {
     #[error(transparent)]
@@ -88,6 +100,8 @@ pub enum SfmError {
     /// workspace rule: one or the other, never both).
     #[error("camera for {image}: {error}")]
     Camera { image: String, error: CameraError },
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     #[error(transparent)]
     Mapper(#[from] MapperError),
     #[error(transparent)]
@@ -520,6 +534,7 @@ pub fn run_sfm(
     config: &SfmConfig,
     progress: &dyn Progress,
 ) -> Result<SfmSummary, SfmError> {
+    config.check()?;
     let t0 = Instant::now();
     let (input, calibrated) = load_mapper_input(ws, config, progress)?;
     let seconds_load = t0.elapsed().as_secs_f64();

@@ -11,6 +11,7 @@
 //! candidate's nearest query, so it gives the ratio test and the mutual check at once, and
 //! every kernel gives the brute-force result bit for bit (ties to the lower index).
 
+use fresco_core::config::{ConfigError, require};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -19,13 +20,13 @@ use crate::features::feature_file::{DESCRIPTOR_LEN, Descriptor};
 /// Descriptor matching settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct MatchingConfig {
-    /// Lowe's ratio: nearest distance < `ratio` x second-nearest distance. Default 0.8.
+    /// Lowe's ratio: nearest distance < `ratio` x second-nearest distance. Default: `0.8`.
     pub ratio: f32,
-    /// Keep a match only if it is also the nearest neighbour in the other direction. Default true.
+    /// Keep a match only if it is also the nearest neighbour in the other direction. Default: `true`.
     pub mutual: bool,
     /// After a pair is verified with an epipolar geometry (calibrated or uncalibrated), match
     /// it again restricted to that geometry ([`crate::matching::guided_matching`]) and verify the
-    /// guided matches. Default false (COLMAP's default too): on templeSparseRing with its
+    /// guided matches. Default: `false` (COLMAP's default too): on templeSparseRing with its
     /// calibration it adds 30-50% true matches per pair and halves the median camera centre
     /// error (0.119% -> 0.074% of the scene), but on sceaux_castle's repeated facade it adds
     /// matches that are wrong along the epipolar lines (mean reprojection 0.32 -> 0.41 px,
@@ -40,6 +41,18 @@ impl Default for MatchingConfig {
             mutual: true,
             guided: false,
         }
+    }
+}
+
+impl MatchingConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.ratio > 0.0 && self.ratio <= 1.0,
+            "ratio",
+            self.ratio,
+            "in (0, 1]",
+        )
     }
 }
 

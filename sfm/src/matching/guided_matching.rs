@@ -25,15 +25,15 @@ use crate::features::feature_file::Descriptor;
 /// Guided matching settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct GuidedConfig {
-    /// Largest Sampson distance (pixels) to the epipolar geometry. Default 4 (the RANSAC
+    /// Largest Sampson distance (pixels) to the epipolar geometry. Default: `4.0` (the RANSAC
     /// threshold of verification).
     pub max_error_px: f64,
-    /// Lowe's ratio among the allowed candidates. Default 0.8.
+    /// Lowe's ratio among the allowed candidates. Default: `0.8`.
     pub ratio: f32,
-    /// Largest angle between the two unit descriptors, radians. Default 0.7 (COLMAP's
+    /// Largest angle between the two unit descriptors, radians. Default: `0.7` (COLMAP's
     /// `max_distance`).
     pub max_angle_rad: f64,
-    /// Keep a match only if it is also the nearest allowed neighbour the other way. Default true.
+    /// Keep a match only if it is also the nearest allowed neighbour the other way. Default: `true`.
     pub mutual: bool,
 }
 

@@ -20,4 +20,6 @@ pub use descriptor_matching::{
 };
 pub use pair_matching::{MatchImage, PairMatches, match_and_verify_pair, match_pairs};
 pub use pair_selection::{PairSelection, select_pairs};
-pub use workspace_matching::{MatchStageConfig, MatchStageOutput, match_workspace};
+pub use workspace_matching::{
+    MatchStageConfig, MatchStageError, MatchStageOutput, match_workspace,
+};

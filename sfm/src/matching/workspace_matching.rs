@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use fresco_core::config::ConfigError;
 use fresco_core::{FormatError, Progress};
 
 use crate::geometry::two_view::{PairKind, VerifiedPair};
@@ -15,9 +16,11 @@ use crate::workspace::{ImageList, matches_path, read_features, read_images};
 /// Settings of the matching stage.
 #[derive(Clone, Debug)]
 pub struct MatchStageConfig {
-    /// Default exhaustive.
+    /// Default: `Exhaustive`.
     pub selection: PairSelection,
+    /// Default: `MatchingConfig::default()`.
     pub matching: MatchingConfig,
+    /// Default: `VerificationConfig::default()`.
     pub verification: VerificationConfig,
 }
 
@@ -29,6 +32,25 @@ impl Default for MatchStageConfig {
             verification: VerificationConfig::default(),
         }
     }
+}
+
+impl MatchStageConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.matching.check().map_err(|e| e.within("matching"))?;
+        self.verification
+            .check()
+            .map_err(|e| e.within("verification"))
+    }
+}
+
+/// Why [`match_workspace`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MatchStageError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// What [`match_workspace`] did.
@@ -46,7 +68,8 @@ pub fn match_workspace(
     ws: &Path,
     config: &MatchStageConfig,
     progress: &dyn Progress,
-) -> Result<MatchStageOutput, FormatError> {
+) -> Result<MatchStageOutput, MatchStageError> {
+    config.check()?;
     let images = read_images(ws)?;
     let features = images
         .images

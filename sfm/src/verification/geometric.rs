@@ -21,6 +21,7 @@
 //! - degenerate: fewer than `min_inliers` (15) inliers for every model.
 
 use fresco_core::Rigid3;
+use fresco_core::config::{ConfigError, require};
 use nalgebra::{Matrix3, Point2, UnitQuaternion, Vector3};
 use serde::Serialize;
 
@@ -37,17 +38,17 @@ use crate::geometry::two_view::{Correspondence, PairKind, TwoViewGeometry};
 #[derive(Clone, Debug, Serialize)]
 pub struct VerificationConfig {
     /// RANSAC threshold of every model, pixels (Sampson error for F and E, transfer error for
-    /// H). Default 4.
+    /// H). Default: `4.0`.
     pub max_error_px: f64,
-    /// RANSAC confidence. Default 0.999.
+    /// RANSAC confidence. Default: `0.999`.
     pub confidence: f64,
-    /// Most RANSAC samples per model. Default 10000.
+    /// Most RANSAC samples per model. Default: `10000`.
     pub max_iterations: usize,
-    /// Fewest inliers of a verified pair. Default 15.
+    /// Fewest inliers of a verified pair. Default: `15`.
     pub min_inliers: usize,
-    /// E inliers / F inliers at least this: the focal priors are right. Default 0.95.
+    /// E inliers / F inliers at least this: the focal priors are right. Default: `0.95`.
     pub min_e_f_inlier_ratio: f64,
-    /// H inliers / (E or F) inliers above this: the homography explains the pair. Default 0.8.
+    /// H inliers / (E or F) inliers above this: the homography explains the pair. Default: `0.8`.
     pub max_h_inlier_ratio: f64,
     /// When both focal priors come from calibration files (a measured K, not an EXIF guess
     /// that crops or digital zoom can falsify), a pair whose matches E does not explain is
@@ -56,12 +57,13 @@ pub struct VerificationConfig {
     /// in the ground truth, with F 15-26 inliers of 29-50 matches and E 2-5 fewer: the chance
     /// inliers a 7-point sample gains over a 5-point one; the other three, 46 degrees apart,
     /// had 13-15 E inliers).
-    /// Default true; false gives COLMAP's behaviour.
+    /// Default: `true`; false gives COLMAP's behaviour.
     pub trust_calibration_files: bool,
     /// Smallest / largest singular value of `K2⁻¹ H K1` above this: a pure rotation (the
     /// baseline is below about 1% of the plane's distance, nothing can be triangulated).
-    /// Default 0.99.
+    /// Default: `0.99`.
     pub panoramic_singular_ratio: f64,
+    /// Default: `0`.
     pub seed: u64,
 }
 
@@ -78,6 +80,44 @@ impl Default for VerificationConfig {
             trust_calibration_files: true,
             seed: 0,
         }
+    }
+}
+
+impl VerificationConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.max_error_px.is_finite() && self.max_error_px > 0.0,
+            "max_error_px",
+            self.max_error_px,
+            "finite and > 0",
+        )?;
+        require(
+            self.confidence > 0.0 && self.confidence < 1.0,
+            "confidence",
+            self.confidence,
+            "in (0, 1)",
+        )?;
+        require(
+            self.max_iterations >= 1,
+            "max_iterations",
+            self.max_iterations,
+            ">= 1",
+        )?;
+        require(
+            self.min_inliers >= 7,
+            "min_inliers",
+            self.min_inliers,
+            ">= 7 (the seven-point fundamental matrix's sample)",
+        )?;
+        for (name, value) in [
+            ("min_e_f_inlier_ratio", self.min_e_f_inlier_ratio),
+            ("max_h_inlier_ratio", self.max_h_inlier_ratio),
+            ("panoramic_singular_ratio", self.panoramic_singular_ratio),
+        ] {
+            require((0.0..=1.0).contains(&value), name, value, "in [0, 1]")?;
+        }
+        Ok(())
     }
 }
 
