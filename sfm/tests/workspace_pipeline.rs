@@ -150,6 +150,10 @@ fn workspace_to_model_and_coloured_points() {
     assert!(e.max_rotation_deg < 0.2, "{e:?}");
     // The focal prior was 20% off; BA finds the true 600 px within 1%.
     assert!((summary.focal_px[&1] - 600.0).abs() < 6.0, "{summary:?}");
+    // The summary says where the focal length started: the photos' prior and its source.
+    let prior = &summary.focal_priors[&1];
+    assert_eq!(prior.source, FocalSource::Default, "{summary:?}");
+    assert!((prior.focal_px - 720.0).abs() < 1e-9, "{summary:?}");
     let cloud = ply::read_mesh(ws.join("sparse").join("points.ply")).unwrap();
     assert_eq!(cloud.positions.len(), model.points3d.len());
     let colours = cloud.colors.expect("points.ply has colours");

@@ -12,12 +12,12 @@
 //!   [`SfmSummary`];
 //! - [`read_model_or_workspace`], [`read_reference`]: the inputs of `fresco eval poses`.
 
-use fresco_core::config::ConfigError;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fresco_core::camera::CameraError;
+use fresco_core::config::ConfigError;
 use fresco_core::photo::{PhotoError, load_photo};
 use fresco_core::ply::PlyFormat;
 use fresco_core::{Camera, CameraModel, FormatError, Mesh, Progress, Reconstruction, colmap};
@@ -125,6 +125,17 @@ pub struct Unregistered {
     pub reason: String,
 }
 
+/// A camera's focal-length prior, and where it came from (issue 18: users should see whether
+/// the focal length was measured, read from EXIF, or guessed).
+#[derive(Clone, Debug, Serialize)]
+pub struct FocalPriorSummary {
+    /// The focal length the mapper started from, pixels.
+    pub focal_px: f64,
+    /// Its source: calibration file, EXIF, or the 1.2 x max(w, h) default (the first
+    /// photo's, by id, of the camera's photos).
+    pub source: FocalSource,
+}
+
 /// What [`run_sfm`] did; the main model is the first (largest) one.
 #[derive(Clone, Debug, Serialize)]
 pub struct SfmSummary {
@@ -135,6 +146,8 @@ pub struct SfmSummary {
     pub camera_model: String,
     /// Focal lengths of the main model's cameras after adjustment, pixels, by camera id.
     pub focal_px: BTreeMap<u32, f64>,
+    /// Every camera's focal prior and its source, by camera id.
+    pub focal_priors: BTreeMap<u32, FocalPriorSummary>,
     /// Standard deviation of each refined intrinsic parameter of the main model's cameras
     /// (COLMAP's parameter names: f, cx, k1, ...), by camera id, from the covariance of the
     /// final adjustment (`bundle::intrinsics_covariance`): how well the photos determine the
@@ -622,6 +635,24 @@ pub fn run_sfm(
             });
         }
     }
+    let source_of: HashMap<String, FocalSource> = read_images(ws)?
+        .images
+        .into_iter()
+        .map(|im| (im.name, im.prior.source))
+        .collect();
+    let mut focal_priors = BTreeMap::new();
+    for im in &input.images {
+        if let (Some(camera), Some(&source)) =
+            (input.cameras.get(&im.camera_id), source_of.get(&im.name))
+        {
+            focal_priors
+                .entry(im.camera_id)
+                .or_insert_with(|| FocalPriorSummary {
+                    focal_px: camera.focal(),
+                    source,
+                });
+        }
+    }
     Ok(SfmSummary {
         workspace: ws.to_path_buf(),
         images: input.images.len(),
@@ -633,6 +664,7 @@ pub fn run_sfm(
             .iter()
             .map(|(&id, c)| (id, c.focal()))
             .collect(),
+        focal_priors,
         intrinsics_std,
         registered: main.images.len(),
         points: main.points3d.len(),
