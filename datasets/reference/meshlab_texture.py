@@ -22,7 +22,9 @@ an off-centre principal point beyond 0.5 px, tangential distortion) is refused w
 Whether MeshLab's raster filters apply Bundler's k1/k2 is not documented; the benchmark feeds
 distortion-free cameras.
 
-Usage (bench/texture_meshlab.sh runs it; pymeshlab needs a display: xvfb-run -a):
+Usage (bench/texture_meshlab.sh runs it; the raster filters need OpenGL: an X server with GLX,
+`xvfb-run -a -s "-screen 0 1280x1024x24 +extension GLX"`, and the xcb libraries
+bench/texture_meshlab.sh installs):
   python meshlab_texture.py --colmap <sparse dir> --images <dir> --mesh <mesh.ply>
       [--exclude a.png,b.png] [--texture-size 2048] -o <out dir>
 Writes <out>/meshlab_param.glb, meshlab_project.glb, meshlab_vertex.glb, the param filter's
@@ -38,10 +40,16 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from PIL import Image
+import importlib.util
 
-import pymeshlab
+import numpy as np
+
+# pymeshlab ships Qt without its platform plugins; PyQt5-Qt5 has them (xcb and its GLX
+# integration, which the raster filters need for their OpenGL depth renders under xvfb).
+_pyqt = importlib.util.find_spec("PyQt5")
+if _pyqt is not None and "QT_PLUGIN_PATH" not in os.environ:
+    os.environ["QT_PLUGIN_PATH"] = str(Path(list(_pyqt.submodule_search_locations)[0]) / "Qt5" / "plugins")
+import pymeshlab  # noqa: E402
 
 
 def read_colmap_text(model: Path):
@@ -223,9 +231,12 @@ def main():
     work.mkdir(exist_ok=True)
     bundle, lst = write_bundler(cameras, images, a.images, work)
     # MeshLab writes a filter's texture next to the mesh file: work on a copy, never beside
-    # the input.
-    mesh_copy = work / ("mesh" + a.mesh.suffix)
-    shutil.copy(a.mesh, mesh_copy)
+    # the input; the copy keeps no vertex colours (a synthetic mesh carries its true albedo,
+    # which a filter would otherwise keep where no raster sees a vertex).
+    mesh_copy = work / "mesh.ply"
+    strip = pymeshlab.MeshSet()
+    strip.load_new_mesh(str(a.mesh))
+    strip.save_current_mesh(str(mesh_copy), save_vertex_color=False, save_face_color=False)
     results = {"rasters": len(images), "texture_size": a.texture_size}
     only = set(a.only.split(","))
 
