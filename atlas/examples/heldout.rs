@@ -32,7 +32,7 @@ fn main() {
         height: width * 3 / 4,
         views: var("VIEWS").map_or(SceneConfig::default().views, |v| v as u32),
         distortion: match var("K1") {
-            Some(k) if k == 0.0 => fresco_datasets::Distortion::None,
+            Some(0.0) => fresco_datasets::Distortion::None,
             Some(k) => fresco_datasets::Distortion::SimpleRadial { k },
             None => SceneConfig::default().distortion,
         },
