@@ -1,47 +1,32 @@
-//! Descriptor matching and pair selection (paper 003, section 3: matching features and
-//! selecting the images that share points).
-//!
-//! - [`match_descriptors`]: brute-force nearest and second-nearest neighbours in L2 between
-//!   two sets of u8 SIFT descriptors, Lowe's ratio test (Lowe 2004, section 7.1: the nearest
-//!   distance below `ratio` times the second; 0.8 as in the paper and COLMAP) and the mutual
-//!   check (the nearest neighbour of the match, searched the other way, is the query). The
-//!   squared distances `|a|² + |b|² - 2 a·b` are exact integers: the dot products run on
-//!   the u8 descriptors in i32 (AVX-512 VNNI or AVX2, chosen at run time, see
-//!   [`DistanceKernel`]; faer's f32 GEMM, exact below 2²⁴, where neither exists), in register
-//!   tiles of 4 queries x 32-64 candidates over cache-sized candidate chunks, with query
-//!   blocks on rayon. The same pass keeps each query's two nearest candidates and each
-//!   candidate's nearest query, so it gives the ratio test and the mutual check at once, and
-//!   every kernel gives the brute-force result bit for bit (ties to the lower index).
-//! - [`select_pairs`]: which image pairs to match: all (exhaustive), each image with the
-//!   next `n` (sequential, for video-like captures), or each image with its `k` most similar
-//!   images by a global descriptor (retrieval: the mean of the image's unit descriptors,
-//!   centred on the mean over all images and normalised, compared by dot product).
-//! - [`match_pairs`]: matching and geometric verification ([`crate::verification`]) of the
-//!   selected pairs, on rayon, with progress.
+//! Descriptor matching (paper 003, section 3: matching features between images):
+//! [`match_descriptors`] finds brute-force nearest and second-nearest neighbours in L2 between
+//! two sets of u8 SIFT descriptors, with Lowe's ratio test (Lowe 2004, section 7.1: the nearest
+//! distance below `ratio` times the second; 0.8 as in the paper and COLMAP) and the mutual
+//! check (the nearest neighbour of the match, searched the other way, is the query). The
+//! squared distances `|a|² + |b|² - 2 a·b` are exact integers: the dot products run on
+//! the u8 descriptors in i32 (AVX-512 VNNI or AVX2, chosen at run time, see
+//! [`DistanceKernel`]; faer's f32 GEMM, exact below 2²⁴, where neither exists), in register
+//! tiles of 4 queries x 32-64 candidates over cache-sized candidate chunks, with query
+//! blocks on rayon. The same pass keeps each query's two nearest candidates and each
+//! candidate's nearest query, so it gives the ratio test and the mutual check at once, and
+//! every kernel gives the brute-force result bit for bit (ties to the lower index).
 
-use fresco_core::Progress;
-use nalgebra::{Matrix3, Point2};
+use fresco_core::config::{ConfigError, require};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::feature_file::{DESCRIPTOR_LEN, Descriptor, Features};
-use crate::focal_prior::FocalPrior;
-use crate::fundamental::sampson_error_squared;
-use crate::guided_matching::{GuidedConfig, match_guided};
-use crate::loss::mad_scale;
-use crate::two_view::{Correspondence, PairKind, TwoViewGeometry, VerifiedPair};
-use crate::verification::{Verification, VerificationConfig, prior_matrix, verify_pair_scaled};
+use crate::features::feature_file::{DESCRIPTOR_LEN, Descriptor};
 
 /// Descriptor matching settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct MatchingConfig {
-    /// Lowe's ratio: nearest distance < `ratio` x second-nearest distance. Default 0.8.
+    /// Lowe's ratio: nearest distance < `ratio` x second-nearest distance. Default: `0.8`.
     pub ratio: f32,
-    /// Keep a match only if it is also the nearest neighbour in the other direction. Default true.
+    /// Keep a match only if it is also the nearest neighbour in the other direction. Default: `true`.
     pub mutual: bool,
     /// After a pair is verified with an epipolar geometry (calibrated or uncalibrated), match
-    /// it again restricted to that geometry ([`crate::guided_matching`]) and verify the
-    /// guided matches. Default false (COLMAP's default too): on templeSparseRing with its
+    /// it again restricted to that geometry ([`crate::matching::guided_matching`]) and verify the
+    /// guided matches. Default: `false` (COLMAP's default too): on templeSparseRing with its
     /// calibration it adds 30-50% true matches per pair and halves the median camera centre
     /// error (0.119% -> 0.074% of the scene), but on sceaux_castle's repeated facade it adds
     /// matches that are wrong along the epipolar lines (mean reprojection 0.32 -> 0.41 px,
@@ -56,6 +41,18 @@ impl Default for MatchingConfig {
             mutual: true,
             guided: false,
         }
+    }
+}
+
+impl MatchingConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.ratio > 0.0 && self.ratio <= 1.0,
+            "ratio",
+            self.ratio,
+            "in (0, 1]",
+        )
     }
 }
 
@@ -291,7 +288,7 @@ fn nearest_portable(d1: &[Descriptor], d2: &[Descriptor]) -> (Vec<Nearest2>, Vec
 #[allow(clippy::needless_range_loop)]
 mod simd {
     use super::{ColumnBest, Nearest2, merge_columns};
-    use crate::feature_file::Descriptor;
+    use crate::features::feature_file::Descriptor;
     use rayon::prelude::*;
     use std::arch::x86_64::*;
 
@@ -759,299 +756,13 @@ mod simd {
     }
 }
 
-/// Which image pairs to match.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PairSelection {
-    /// Every pair: n (n - 1) / 2 pairs.
-    Exhaustive,
-    /// Each image with the next `overlap` images in order (video-like captures).
-    Sequential { overlap: usize },
-    /// Each image with its `top_k` most similar images by a global descriptor.
-    Retrieval { top_k: usize },
-}
-
-/// The global descriptor of an image: the mean of its unit-length descriptors.
-fn mean_descriptor(features: &Features) -> Vec<f32> {
-    let mut m = vec![0f32; DESCRIPTOR_LEN];
-    for d in &features.descriptors {
-        let n = d
-            .iter()
-            .map(|&v| (v as f32) * (v as f32))
-            .sum::<f32>()
-            .sqrt();
-        if n > 0.0 {
-            for (a, &v) in m.iter_mut().zip(d) {
-                *a += v as f32 / n;
-            }
-        }
-    }
-    let n = features.descriptors.len().max(1) as f32;
-    m.iter_mut().for_each(|a| *a /= n);
-    m
-}
-
-/// Pairs `(i, j)`, `i < j`, of indices into `features` to match, sorted.
-pub fn select_pairs(features: &[Features], selection: PairSelection) -> Vec<(usize, usize)> {
-    let n = features.len();
-    let mut pairs: Vec<(usize, usize)> = match selection {
-        PairSelection::Exhaustive => (0..n)
-            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
-            .collect(),
-        PairSelection::Sequential { overlap } => (0..n)
-            .flat_map(|i| (i + 1..n.min(i + 1 + overlap)).map(move |j| (i, j)))
-            .collect(),
-        PairSelection::Retrieval { top_k } => {
-            let mut g: Vec<Vec<f32>> = features.par_iter().map(mean_descriptor).collect();
-            // Centre on the collection's mean: what all images share (the average SIFT
-            // histogram) says nothing about overlap.
-            let mut centre = vec![0f32; DESCRIPTOR_LEN];
-            for v in &g {
-                for (c, x) in centre.iter_mut().zip(v) {
-                    *c += x / n.max(1) as f32;
-                }
-            }
-            for v in &mut g {
-                for (x, c) in v.iter_mut().zip(&centre) {
-                    *x -= c;
-                }
-                let norm = v.iter().map(|x| x * x).sum::<f32>().sqrt();
-                if norm > 0.0 {
-                    v.iter_mut().for_each(|x| *x /= norm);
-                }
-            }
-            let mut pairs = Vec::new();
-            for i in 0..n {
-                let mut sims: Vec<(f32, usize)> = (0..n)
-                    .filter(|&j| j != i)
-                    .map(|j| (g[i].iter().zip(&g[j]).map(|(a, b)| a * b).sum(), j))
-                    .collect();
-                sims.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-                for &(_, j) in sims.iter().take(top_k) {
-                    pairs.push((i.min(j), i.max(j)));
-                }
-            }
-            pairs
-        }
-    };
-    pairs.sort_unstable();
-    pairs.dedup();
-    pairs
-}
-
-/// One image as matching needs it: its id, features and focal prior.
-#[derive(Clone, Copy)]
-pub struct MatchImage<'a> {
-    pub id: u32,
-    pub features: &'a Features,
-    pub prior: &'a FocalPrior,
-}
-
-/// Matches and verifies the pairs `pairs` (indices into `images`) on rayon. Returns one
-/// [`VerifiedPair`] per pair (degenerate ones included, so callers can report them), ordered
-/// by `(image1, image2)` ids with `image1 < image2`.
-pub fn match_pairs(
-    images: &[MatchImage],
-    pairs: &[(usize, usize)],
-    matching: &MatchingConfig,
-    verification: &VerificationConfig,
-    progress: &dyn Progress,
-) -> Vec<VerifiedPair> {
-    let keypoints: Vec<Vec<Point2<f64>>> = images
-        .iter()
-        .map(|im| {
-            im.features
-                .keypoints
-                .iter()
-                .map(|k| Point2::new(k.x as f64, k.y as f64))
-                .collect()
-        })
-        .collect();
-    // Keypoint scales weigh the final pose refinement (see `verify_pair_scaled`).
-    let scales: Vec<Vec<f64>> = images
-        .iter()
-        .map(|im| {
-            im.features
-                .keypoints
-                .iter()
-                .map(|k| k.scale as f64)
-                .collect()
-        })
-        .collect();
-    progress.begin("matching", pairs.len() as u64);
-    let mut out: Vec<VerifiedPair> = pairs
-        .par_iter()
-        .map(|&(i, j)| {
-            // Ids in increasing order, as the match file requires.
-            let (i, j) = if images[i].id < images[j].id {
-                (i, j)
-            } else {
-                (j, i)
-            };
-            let (a, b) = (&images[i], &images[j]);
-            let pair = match_and_verify_pair(
-                [&keypoints[i], &keypoints[j]],
-                [&scales[i], &scales[j]],
-                [&a.features.descriptors, &b.features.descriptors],
-                [a.prior, b.prior],
-                matching,
-                verification,
-            );
-            progress.advance(1);
-            VerifiedPair {
-                image1: a.id,
-                image2: b.id,
-                num_matches: pair.num_matches as u32,
-                geometry: pair.verification.geometry,
-            }
-        })
-        .collect();
-    progress.end();
-    out.sort_by_key(|p| (p.image1, p.image2));
-    out
-}
-
-/// What [`match_and_verify_pair`] found.
-#[derive(Clone, Debug)]
-pub struct PairMatches {
-    /// Descriptor matches of the unguided pass (ratio and mutual tests).
-    pub num_matches: usize,
-    /// The putative matches the final verification ran on: the guided ones when the guided
-    /// pass was kept (`guided`), otherwise those of the unguided pass.
-    pub matches: Vec<[u32; 2]>,
-    pub guided: bool,
-    pub verification: Verification,
-}
-
-/// Matches and verifies one pair: descriptor matching over all keypoints, verification, and
-/// (with `matching.guided`) guided matching under the verified epipolar geometry followed by
-/// a second verification of the guided matches.
-///
-/// The guided pass runs on calibrated and uncalibrated pairs whose inliers are sharp (three
-/// times their noise level, the guided band, at most half the RANSAC threshold), and is kept
-/// when its verification gives the same kind of pair with at least as many inliers;
-/// otherwise the first verification stands. `keypoints`, `scales` and
-/// `descriptors` are image 1's and image 2's, in the same order.
-pub fn match_and_verify_pair(
-    keypoints: [&[Point2<f64>]; 2],
-    scales: [&[f64]; 2],
-    descriptors: [&[Descriptor]; 2],
-    priors: [&FocalPrior; 2],
-    matching: &MatchingConfig,
-    verification: &VerificationConfig,
-) -> PairMatches {
-    let matches = match_descriptors(descriptors[0], descriptors[1], matching);
-    let verify = |m: &[[u32; 2]]| {
-        verify_pair_scaled(
-            keypoints[0],
-            keypoints[1],
-            Some((scales[0], scales[1])),
-            m,
-            priors[0],
-            priors[1],
-            verification,
-        )
-    };
-    let first = verify(&matches);
-    let mut out = PairMatches {
-        num_matches: matches.len(),
-        matches,
-        guided: false,
-        verification: first,
-    };
-    if !matching.guided {
-        return out;
-    }
-    let Some(f) = epipolar_geometry(&out.verification.geometry, priors) else {
-        return out;
-    };
-    // Guided matching only for pairs whose inliers are sharp. The inliers of a wrong model
-    // (chance agreements, e.g. an F through mismatches of two unrelated views) spread over the
-    // whole RANSAC band, and guided matching would fill that band with more chance matches
-    // along the wrong lines; the inliers of a true geometry sit within a fraction of a pixel
-    // of it (on templeSparseRing 0.1-0.2 px, median |Sampson|). The band is a multiple of the
-    // pair's own noise level, so that matches no better than the first inliers are not added.
-    let Some(sigma) = inlier_noise_px(&f, &out.verification.geometry.inliers, keypoints) else {
-        return out;
-    };
-    let band = GUIDED_BAND_SIGMAS * sigma;
-    if !(band > 0.0 && band <= 0.5 * verification.max_error_px) {
-        return out;
-    }
-    let guided_config = GuidedConfig {
-        max_error_px: band,
-        ratio: matching.ratio,
-        mutual: matching.mutual,
-        ..GuidedConfig::default()
-    };
-    let guided = match_guided(
-        keypoints[0],
-        descriptors[0],
-        keypoints[1],
-        descriptors[1],
-        &f,
-        &guided_config,
-    );
-    let second = verify(&guided);
-    let before = &out.verification.geometry;
-    if second.geometry.kind == before.kind && second.geometry.inliers.len() >= before.inliers.len()
-    {
-        out.matches = guided;
-        out.guided = true;
-        out.verification = second;
-    }
-    out
-}
-
-/// Width of the guided-matching band in noise levels of the pair's first inliers: 3 keeps
-/// 99.7% of Gaussian inliers.
-const GUIDED_BAND_SIGMAS: f64 = 3.0;
-
-/// The noise level (pixels) of a pair's inliers under `f`: the median absolute deviation of
-/// their Sampson distances ([`mad_scale`]). `None` without inliers.
-fn inlier_noise_px(
-    f: &Matrix3<f64>,
-    inliers: &[[u32; 2]],
-    keypoints: [&[Point2<f64>]; 2],
-) -> Option<f64> {
-    let mut d: Vec<f64> = inliers
-        .iter()
-        .map(|m| {
-            let c = Correspondence {
-                x1: keypoints[0][m[0] as usize],
-                x2: keypoints[1][m[1] as usize],
-            };
-            sampson_error_squared(f, &c).sqrt()
-        })
-        .collect();
-    mad_scale(&mut d)
-}
-
-/// The fundamental matrix (pixels) a verified pair's matches satisfy, for guided matching:
-/// from the refined relative pose and the priors' intrinsics for a calibrated pair, the
-/// estimated F for an uncalibrated one; none for the homography kinds and degenerate pairs.
-fn epipolar_geometry(geometry: &TwoViewGeometry, priors: [&FocalPrior; 2]) -> Option<Matrix3<f64>> {
-    match geometry.kind {
-        PairKind::Calibrated => {
-            let pose = geometry.cam2_from_cam1?;
-            let e = pose.translation.normalize().cross_matrix()
-                * pose.rotation.to_rotation_matrix().into_inner();
-            let k1_inv = prior_matrix(priors[0]).try_inverse()?;
-            let k2_inv = prior_matrix(priors[1]).try_inverse()?;
-            Some(k2_inv.transpose() * e * k1_inv)
-        }
-        PairKind::Uncalibrated => geometry.fundamental,
-        _ => None,
-    }
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use crate::fundamental::tests::Lcg;
+    use fresco_core::Rng;
 
-    fn random_descriptors(n: usize, seed: u64) -> Vec<Descriptor> {
-        let mut rng = Lcg(seed);
+    pub(crate) fn random_descriptors(n: usize, seed: u64) -> Vec<Descriptor> {
+        let mut rng = Rng::new(seed);
         (0..n)
             .map(|_| std::array::from_fn(|_| (rng.uniform() * 120.0) as u8))
             .collect()
@@ -1099,7 +810,7 @@ mod tests {
         // unrelated ones: three query blocks and two candidate blocks, neither a multiple of
         // the block sizes, so every tail path runs.
         let d1 = random_descriptors(603, 1);
-        let mut rng = Lcg(2);
+        let mut rng = Rng::new(2);
         let mut d2 = random_descriptors(1100, 3);
         for d in d1.iter().take(450) {
             d2.push(d.map(|v| (v as f64 + rng.range(-6.0, 6.0)).clamp(0.0, 255.0) as u8));
@@ -1137,7 +848,7 @@ mod tests {
         // around the tile, lane and task widths, and exact ties: duplicated candidates (equal
         // best and second best: rejected by the ratio test) and duplicated queries (equal
         // column distances: the lower query wins the mutual check).
-        let mut rng = Lcg(11);
+        let mut rng = Rng::new(11);
         let mut wide = |n: usize| -> Vec<Descriptor> {
             (0..n)
                 .map(|_| std::array::from_fn(|_| (rng.uniform() * 256.0).min(255.0) as u8))
@@ -1186,142 +897,5 @@ mod tests {
         assert!(match_descriptors(&[], &d, &c).is_empty());
         assert!(match_descriptors(&d, &[], &c).is_empty());
         assert!(match_descriptors(&d, &d[..1], &c).is_empty());
-    }
-
-    #[test]
-    fn pair_selection() {
-        let f = |seed| Features {
-            width: 10,
-            height: 10,
-            root_sift: false,
-            keypoints: vec![Default::default(); 50],
-            descriptors: random_descriptors(50, seed),
-        };
-        let feats: Vec<Features> = (0..6).map(f).collect();
-        assert_eq!(select_pairs(&feats, PairSelection::Exhaustive).len(), 15);
-        assert_eq!(
-            select_pairs(&feats, PairSelection::Sequential { overlap: 2 }),
-            vec![
-                (0, 1),
-                (0, 2),
-                (1, 2),
-                (1, 3),
-                (2, 3),
-                (2, 4),
-                (3, 4),
-                (3, 5),
-                (4, 5)
-            ]
-        );
-        // Retrieval: image 5 is image 0's descriptors slightly perturbed; it must be image 0's
-        // first choice (top 1), and every image gets at least one partner.
-        let mut feats = feats;
-        feats[5].descriptors = feats[0]
-            .descriptors
-            .iter()
-            .map(|d| d.map(|v| v.saturating_add(2)))
-            .collect();
-        let p = select_pairs(&feats, PairSelection::Retrieval { top_k: 1 });
-        assert!(p.contains(&(0, 5)));
-        for i in 0..6 {
-            assert!(p.iter().any(|&(a, b)| a == i || b == i));
-        }
-    }
-
-    #[test]
-    fn match_pairs_on_a_synthetic_scene() {
-        use crate::feature_file::Keypoint;
-        use crate::focal_prior::FocalSource;
-        use crate::fundamental::tests::Scene;
-        use crate::two_view::PairKind;
-        use crate::view_graph::ViewGraph;
-        use fresco_core::NoProgress;
-
-        // Images 1 and 2 see the same 300 points (descriptors: noisy copies of one random
-        // descriptor per point, image 2 in reverse order); image 3 sees something else.
-        let scene = Scene::new(12, 300, false);
-        let pixels = scene.pixels(0.3, 2);
-        let base = random_descriptors(300, 4);
-        let mut rng = Lcg(6);
-        let mut noisy =
-            |d: &Descriptor| d.map(|v| (v as f64 + rng.range(-5.0, 5.0)).clamp(0.0, 255.0) as u8);
-        let kp = |x: f64, y: f64| Keypoint {
-            x: x as f32,
-            y: y as f32,
-            scale: 2.0,
-            orientation: 0.0,
-        };
-        let f1 = Features {
-            width: 640,
-            height: 480,
-            root_sift: false,
-            keypoints: pixels.iter().map(|c| kp(c.x1.x, c.x1.y)).collect(),
-            descriptors: base.iter().map(&mut noisy).collect(),
-        };
-        let f2 = Features {
-            width: 640,
-            height: 480,
-            root_sift: false,
-            keypoints: pixels.iter().rev().map(|c| kp(c.x2.x, c.x2.y)).collect(),
-            descriptors: base.iter().rev().map(&mut noisy).collect(),
-        };
-        let f3 = Features {
-            width: 640,
-            height: 480,
-            root_sift: false,
-            keypoints: (0..300)
-                .map(|_| kp(rng.range(0.0, 640.0), rng.range(0.0, 480.0)))
-                .collect(),
-            descriptors: random_descriptors(300, 8),
-        };
-        let prior = FocalPrior {
-            focal_x: 800.0,
-            focal_y: 800.0,
-            cx: 320.0,
-            cy: 240.0,
-            source: FocalSource::CalibrationFile,
-        };
-        let feats = [f1, f2, f3];
-        let images: Vec<MatchImage> = feats
-            .iter()
-            .enumerate()
-            .map(|(i, f)| MatchImage {
-                id: i as u32 + 1,
-                features: f,
-                prior: &prior,
-            })
-            .collect();
-        let pairs = select_pairs(&feats, PairSelection::Exhaustive);
-        let out = match_pairs(
-            &images,
-            &pairs,
-            &MatchingConfig::default(),
-            &VerificationConfig::default(),
-            &NoProgress,
-        );
-        assert_eq!(
-            out.iter().map(|p| (p.image1, p.image2)).collect::<Vec<_>>(),
-            vec![(1, 2), (1, 3), (2, 3)]
-        );
-        let g = &out[0].geometry;
-        assert_eq!(g.kind, PairKind::Calibrated);
-        // ±5 noise on 128 entries vs independent random descriptors: every copy is found and
-        // verified (0.3 px keypoint noise against a 4 px threshold), and each inlier pairs a
-        // point with itself (image 2 is reversed).
-        assert_eq!(g.inliers.len(), 300);
-        assert!(g.inliers.iter().all(|&[a, b]| a + b == 299));
-        let err = g
-            .cam2_from_cam1
-            .unwrap()
-            .rotation
-            .angle_to(&scene.cam2_from_cam1.rotation);
-        assert!(err.to_degrees() < 0.1, "{}", err.to_degrees());
-        assert_eq!(out[1].geometry.kind, PairKind::Degenerate);
-        assert_eq!(out[2].geometry.kind, PairKind::Degenerate);
-        let comps = ViewGraph::new(&[1, 2, 3], &out, 15).components();
-        assert_eq!(
-            comps.iter().map(|c| c.images.clone()).collect::<Vec<_>>(),
-            vec![vec![1, 2], vec![3]]
-        );
     }
 }

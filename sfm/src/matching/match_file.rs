@@ -29,8 +29,8 @@ use std::path::Path;
 use fresco_core::{FormatError, Rigid3};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
-use crate::feature_file::write_atomically;
-use crate::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
+use crate::features::feature_file::write_atomically;
+use crate::geometry::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
 
 /// The magic bytes a match file starts with.
 pub const MATCH_MAGIC: [u8; 8] = *b"FRMATCH\0";

@@ -20,12 +20,12 @@
 use fresco_core::Rigid3;
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
-use crate::fundamental::{
+use crate::geometry::fundamental::{
     MINIMAL_RANK_TOLERANCE, epipolar_row, fundamental_eight_point, normalise,
 };
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// Exponents `(x, y, z)` of the 20 monomials of degree ≤ 3: the ten cubics first (eliminated),
 /// then the ten of degree ≤ 2 (the quotient-ring basis), in the order of the action matrix.
@@ -356,7 +356,7 @@ pub fn pose_from_essential(e: &Matrix3<f64>, data: &[Correspondence]) -> Option<
 }
 
 /// Signed Sampson distance of a normalised correspondence under `E` (its square is
-/// [`crate::fundamental::sampson_error_squared`]).
+/// [`crate::geometry::fundamental::sampson_error_squared`]).
 pub fn sampson_residual(e: &Matrix3<f64>, c: &Correspondence) -> f64 {
     let x1 = Vector3::new(c.x1.x, c.x1.y, 1.0);
     let x2 = Vector3::new(c.x2.x, c.x2.y, 1.0);
@@ -526,7 +526,7 @@ pub fn refine_relative_pose_robust(
                 .enumerate()
                 .map(|(i, c)| (sampson_residual(&e, c) * weights.map_or(1.0, |w| w[i])).abs()),
         );
-        let Some(sigma) = crate::loss::mad_scale(&mut abs) else {
+        let Some(sigma) = crate::bundle::loss::mad_scale(&mut abs) else {
             break;
         };
         // Exact data (sigma 0) cannot be improved; a NaN means a broken input.
@@ -550,7 +550,7 @@ pub fn refine_relative_pose_robust(
 
 /// Squared Sampson error of a normalised correspondence, scaled to pixels squared.
 pub fn essential_error_squared(e: &Matrix3<f64>, c: &Correspondence, focal_px: f64) -> f64 {
-    crate::fundamental::sampson_error_squared(e, c) * focal_px * focal_px
+    crate::geometry::fundamental::sampson_error_squared(e, c) * focal_px * focal_px
 }
 
 /// The essential matrix as a RANSAC estimator over normalised correspondences: five-point
@@ -595,8 +595,9 @@ impl Estimator for EssentialEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, Scene, projective_distance};
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::fundamental::tests::{Scene, projective_distance};
+    use crate::geometry::ransac::{RansacConfig, ransac};
+    use fresco_core::Rng;
     use nalgebra::Point2;
 
     /// Pixels to normalised coordinates with the scene's K.
@@ -721,7 +722,7 @@ mod tests {
     fn ransac_with_noise_and_outliers() {
         let scene = Scene::new(21, 300, false);
         let mut pixels = scene.pixels(1.0, 4);
-        let mut rng = Lcg(5);
+        let mut rng = Rng::new(5);
         // 40% outliers.
         for c in pixels.iter_mut().take(120) {
             c.x2 = Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0));
@@ -739,13 +740,21 @@ mod tests {
         let before = rotation_error_deg(&pose, &scene.cam2_from_cam1);
         let pose = refine_relative_pose(&pose, &inliers, 1.0 / 800.0, 30);
         // 1 px noise, 180 inliers, an 800 px focal and a baseline of ~0.15 rad seen from the
-        // points: the least-squares rotation is off by about 0.05 deg (0.06 here when started
-        // from the truth); 0.2 deg leaves margin. The RANSAC model itself (a minimal sample
-        // plus local optimisation) is within 1 deg. The direction of translation is less well
-        // determined (0.1 rad of margin).
+        // points: the least-squares rotation itself is off by 0.2 deg RMS (measured over ten
+        // noise draws of this scene: 0.02-0.36 deg), so the claim is that RANSAC and the
+        // refinement reach that least-squares optimum (the refinement started from the truth
+        // ends within 0.01 deg of it), and stay within 3 RMS of the truth. The RANSAC model
+        // itself (a minimal sample plus local optimisation) is within 1 deg. The direction of
+        // translation is less well determined (0.1 rad of margin).
         assert!(before < 1.0, "RANSAC rotation error {before} deg");
+        let optimum = refine_relative_pose(&scene.cam2_from_cam1, &inliers, 1.0 / 800.0, 30);
+        let to_optimum = rotation_error_deg(&pose, &optimum);
+        assert!(
+            to_optimum < 0.01,
+            "{to_optimum} deg from the least-squares optimum"
+        );
         let rot = rotation_error_deg(&pose, &scene.cam2_from_cam1);
-        assert!(rot < 0.2, "rotation error {rot} deg");
+        assert!(rot < 0.6, "rotation error {rot} deg");
         let t = scene.cam2_from_cam1.translation.normalize();
         assert!(pose.translation.angle(&t) < 0.1);
         assert!(r.inliers[120..].iter().filter(|&&b| b).count() >= 175);

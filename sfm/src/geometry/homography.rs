@@ -6,10 +6,12 @@
 
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
-use crate::fundamental::{matrix_from_row_major, normalise, normalising_transform, transform};
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::fundamental::{
+    matrix_from_row_major, normalise, normalising_transform, transform,
+};
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// Normalised DLT homography of `data.len() >= 4` correspondences (least squares for more),
 /// scaled to unit Frobenius norm. None for degenerate input (three collinear points in a
@@ -109,8 +111,9 @@ impl Estimator for HomographyEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, projective_distance};
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::fundamental::tests::projective_distance;
+    use crate::geometry::ransac::{RansacConfig, ransac};
+    use fresco_core::Rng;
     use nalgebra::Point2;
 
     fn true_h() -> Matrix3<f64> {
@@ -119,7 +122,7 @@ mod tests {
 
     fn data(n: usize, sigma: f64, seed: u64) -> Vec<Correspondence> {
         let h = true_h();
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         (0..n)
             .map(|_| {
                 let x1 = Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0));
@@ -154,7 +157,7 @@ mod tests {
     #[test]
     fn ransac_with_noise_and_outliers() {
         let mut d = data(200, 0.5, 5);
-        let mut rng = Lcg(9);
+        let mut rng = Rng::new(9);
         for c in d.iter_mut().take(100) {
             c.x2 = Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0));
         }

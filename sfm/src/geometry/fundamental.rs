@@ -8,9 +8,9 @@
 
 use nalgebra::{Matrix3, Point2, SMatrix, Vector3};
 
-use crate::null_space::null_space_of_rank;
-use crate::ransac::Estimator;
-use crate::two_view::Correspondence;
+use crate::geometry::null_space::null_space_of_rank;
+use crate::geometry::ransac::Estimator;
+use crate::geometry::two_view::Correspondence;
 
 /// The similarity `T` (Hartley 1997, section 5.2) that moves the centroid of `points` to the
 /// origin and makes their mean distance to it √2. None for fewer than two distinct points.
@@ -296,28 +296,10 @@ impl Estimator for FundamentalEstimator {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::ransac::{RansacConfig, ransac};
+    use crate::geometry::ransac::{RansacConfig, ransac};
     use fresco_core::Rigid3;
+    use fresco_core::Rng;
     use nalgebra::{Point3, UnitQuaternion};
-
-    /// A tiny deterministic generator for test data.
-    pub(crate) struct Lcg(pub u64);
-    impl Lcg {
-        pub(crate) fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.uniform()
-        }
-        /// Approximately normal (sum of 12 uniforms), unit variance.
-        pub(crate) fn normal(&mut self) -> f64 {
-            (0..12).map(|_| self.uniform()).sum::<f64>() - 6.0
-        }
-    }
 
     /// A synthetic two-view scene: camera 1 at the origin, camera 2 = `cam2_from_cam1`, points
     /// in a box in front of both, pinhole intrinsics `k` (pixels).
@@ -329,7 +311,7 @@ pub(crate) mod tests {
 
     impl Scene {
         pub(crate) fn new(seed: u64, n: usize, planar: bool) -> Scene {
-            let mut rng = Lcg(seed);
+            let mut rng = Rng::new(seed);
             let rotation = UnitQuaternion::from_euler_angles(
                 rng.range(-0.2, 0.2),
                 rng.range(-0.3, 0.3),
@@ -358,7 +340,7 @@ pub(crate) mod tests {
 
         /// Pixel correspondences with Gaussian noise of `sigma` pixels.
         pub(crate) fn pixels(&self, sigma: f64, seed: u64) -> Vec<Correspondence> {
-            let mut rng = Lcg(seed);
+            let mut rng = Rng::new(seed);
             let project = |p: Vector3<f64>| {
                 let q = self.k * (p / p.z);
                 Point2::new(q.x, q.y)
@@ -458,7 +440,7 @@ pub(crate) mod tests {
     fn ransac_with_noise_and_outliers() {
         let scene = Scene::new(7, 300, false);
         let mut data = scene.pixels(0.5, 3);
-        let mut rng = Lcg(11);
+        let mut rng = Rng::new(11);
         // 30% outliers: random points anywhere in the 640x480 images.
         for c in data.iter_mut().take(90) {
             c.x2 = Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0));

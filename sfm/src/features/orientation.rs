@@ -5,6 +5,7 @@
 //!
 //! Angles are in the image frame: radians from +x towards +y (y points down), in [0, 2π).
 
+use fresco_core::config::{ConfigError, require};
 use std::f32::consts::TAU;
 
 use fresco_core::photo::GreyImage;
@@ -12,14 +13,19 @@ use fresco_core::photo::GreyImage;
 /// Orientation-histogram parameters (Lowe's values by default).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OrientationConfig {
+    /// Default: `36`.
     pub bins: usize,
     /// Gaussian weight sigma as a multiple of the keypoint scale (Lowe: 1.5).
+    /// Default: `1.5`.
     pub sigma_factor: f32,
     /// The window radius is this many weight sigmas (3, as OpenCV).
+    /// Default: `3.0`.
     pub radius_factor: f32,
     /// Peaks at least this fraction of the highest give further orientations (Lowe: 0.8).
+    /// Default: `0.8`.
     pub peak_ratio: f32,
     /// Circular smoothing passes of the histogram with [1 4 6 4 1] / 16.
+    /// Default: `true`.
     pub smooth: bool,
 }
 
@@ -32,6 +38,35 @@ impl Default for OrientationConfig {
             peak_ratio: 0.8,
             smooth: true,
         }
+    }
+}
+
+impl OrientationConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            (4..=360).contains(&self.bins),
+            "bins",
+            self.bins,
+            "in 4..=360",
+        )?;
+        for (name, value) in [
+            ("sigma_factor", self.sigma_factor),
+            ("radius_factor", self.radius_factor),
+        ] {
+            require(
+                value.is_finite() && value > 0.0,
+                name,
+                value,
+                "finite and > 0",
+            )?;
+        }
+        require(
+            self.peak_ratio > 0.0 && self.peak_ratio <= 1.0,
+            "peak_ratio",
+            self.peak_ratio,
+            "in (0, 1]",
+        )
     }
 }
 

@@ -29,6 +29,7 @@
 //!    again. Models are returned largest first; input that cannot start any model is reported
 //!    as degenerate, with the reason.
 
+use fresco_core::config::{ConfigError, require};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
@@ -38,14 +39,14 @@ use fresco_core::{
 use nalgebra::{Point2, Point3, Vector2, Vector3};
 use serde::Serialize;
 
+use crate::bundle::loss::Loss;
 use crate::bundle::{BundleConfig, BundleError, BundleSetup, Gauge, bundle_adjust};
-use crate::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
-use crate::loss::Loss;
-use crate::pnp::{PnpConfig, estimate_pose};
-use crate::ransac::{Estimator, RansacConfig, ransac};
-use crate::tracks::{PairMatches, Tracks, build_tracks};
-use crate::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
-use crate::two_view::Correspondence;
+use crate::geometry::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
+use crate::geometry::pnp::{PnpConfig, estimate_pose};
+use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
+use crate::geometry::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
+use crate::geometry::two_view::Correspondence;
+use crate::mapping::tracks::{PairMatches, Tracks, build_tracks};
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
 #[derive(Clone, Debug)]
@@ -84,33 +85,36 @@ pub struct MapperInput {
 /// Mapper settings; defaults follow COLMAP's incremental mapper where it has one.
 #[derive(Clone, Debug, Serialize)]
 pub struct MapperConfig {
-    /// Fewest verified inliers of an initial pair. Default 100.
+    /// Fewest verified inliers of an initial pair. Default: `100`.
     pub init_min_inliers: usize,
-    /// Smallest median triangulation angle of an initial pair, degrees. Default 16 (COLMAP's);
+    /// Smallest median triangulation angle of an initial pair, degrees. Default: `16.0` (COLMAP's);
     /// halved once if no pair reaches it.
     pub init_min_angle_deg: f64,
-    /// Fewest points the initial pair must triangulate. Default 50.
+    /// Fewest points the initial pair must triangulate. Default: `50`.
     pub init_min_points: usize,
-    /// Most initial pairs tried per model. Default 50.
+    /// Most initial pairs tried per model. Default: `50`.
     pub init_max_trials: usize,
+    /// Default: `TriangulationConfig::default()`.
     pub triangulation: TriangulationConfig,
+    /// Default: `PnpConfig::default()`.
     pub pnp: PnpConfig,
-    /// Largest reprojection error of a kept observation after adjustment, pixels. Default 4.
+    /// Largest reprojection error of a kept observation after adjustment, pixels. Default: `4.0`.
     pub filter_max_error_px: f64,
-    /// Smallest triangulation angle of a kept point, degrees. Default 1.5.
+    /// Smallest triangulation angle of a kept point, degrees. Default: `1.5`.
     pub filter_min_angle_deg: f64,
-    /// Neighbours adjusted with a newly registered image. Default 6.
+    /// Neighbours adjusted with a newly registered image. Default: `6`.
     pub local_ba_images: usize,
     /// A global adjustment runs when the registered images grew by this factor since the
     /// last one (COLMAP's 1.1), and always at the end.
+    /// Default: `1.1`.
     pub global_ba_growth: f64,
-    /// Most Levenberg–Marquardt iterations of a local adjustment. Default 25 (COLMAP's).
+    /// Most Levenberg–Marquardt iterations of a local adjustment. Default: `25` (COLMAP's).
     pub local_ba_max_iterations: usize,
-    /// Most iterations of a global adjustment while the model grows. Default 50 (COLMAP's);
+    /// Most iterations of a global adjustment while the model grows. Default: `50` (COLMAP's);
     /// the final one runs to `bundle.max_iterations`.
     pub global_ba_max_iterations: usize,
     /// Relative cost decrease that ends the local adjustments and the global ones while the
-    /// model grows. Default 1e-4: they only need the poses well inside the 4 px thresholds
+    /// model grows. Default: `0.0001`: they only need the poses well inside the 4 px thresholds
     /// of registration and triangulation, and the model's final global adjustment converges
     /// to `bundle.function_tolerance` (1e-6). Halves the adjustment iterations with the
     /// same final poses (templeSparseRing, sceaux_castle: within 0.01 deg).
@@ -122,21 +126,22 @@ pub struct MapperConfig {
     /// weighs linearly. Measured on templeSparseRing with the true calibration: median
     /// rotation 0.27 -> 0.17 deg, centre 0.21% -> 0.15% of the diameter; sceaux against
     /// COLMAP: rotation 0.14 -> 0.03 deg.
+    /// Default: `BundleConfig::default() with loss Cauchy(1.0)`.
     pub bundle: BundleConfig,
-    /// Smallest model kept (registered images). Default 3.
+    /// Smallest model kept (registered images). Default: `3`.
     pub min_model_images: usize,
-    /// Most models built. Default 10.
+    /// Most models built. Default: `10`.
     pub max_models: usize,
     /// The initial intrinsics are trusted (a K file): the focal length is not searched in
-    /// PnP and the intrinsics stay fixed in every adjustment. Default false (only a prior).
+    /// PnP and the intrinsics stay fixed in every adjustment. Default: `false` (only a prior).
     pub calibrated: bool,
     /// When no image registers any more, the model is adjusted globally, retriangulated, and
     /// every unregistered image is tried again accepting this many PnP inliers (COLMAP lowers
-    /// its threshold the same way on retry). Default 15: 5 minimal P3P samples' worth, and the
+    /// its threshold the same way on retry). Default: `15`: 5 minimal P3P samples' worth, and the
     /// pose must also satisfy `retry_min_inlier_ratio` and explain those inliers within
     /// `filter_max_error_px` after refinement, which a pose fitted to a few mismatches cannot.
     pub retry_min_inliers: usize,
-    /// Smallest inlier fraction of a relaxed registration. Default 0.25, the normal one
+    /// Smallest inlier fraction of a relaxed registration. Default: `0.25`, the normal one
     /// (COLMAP's `abs_pose_min_inlier_ratio`): the relaxed pose must still explain its inliers
     /// within `filter_max_error_px` after refinement. With 0.5, templeSparseRing without
     /// calibration lost its three weakest-tied images once the features doubled (image 14: 22
@@ -144,11 +149,12 @@ pub struct MapperConfig {
     /// matches passed verification).
     pub retry_min_inlier_ratio: f64,
     /// Fewest common points, consistent with one similarity, for two models to be merged
-    /// (at least half of their common points must be). Default 10: three times the minimal
-    /// sample, each point checked by reprojection in at least two images of each model.
+    /// (at least half of their common points must be). Default: `6`: twice the minimal
+    /// sample of a similarity (3 points), each point checked by reprojection in at least two
+    /// images of each model.
     pub merge_min_points: usize,
     /// Largest reprojection error of a common point moved into the other model, pixels.
-    /// Default 8: the two models have not been adjusted together yet, so their drift adds to
+    /// Default: `8.0`: the two models have not been adjusted together yet, so their drift adds to
     /// the 4 px kept after adjustment.
     pub merge_max_error_px: f64,
 }
@@ -181,6 +187,96 @@ impl Default for MapperConfig {
             merge_min_points: 6,
             merge_max_error_px: 8.0,
         }
+    }
+}
+
+impl MapperConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.init_min_inliers >= 5,
+            "init_min_inliers",
+            self.init_min_inliers,
+            ">= 5 (the five-point sample)",
+        )?;
+        require(
+            (0.0..180.0).contains(&self.init_min_angle_deg),
+            "init_min_angle_deg",
+            self.init_min_angle_deg,
+            "in [0, 180)",
+        )?;
+        require(
+            self.init_min_points >= 1,
+            "init_min_points",
+            self.init_min_points,
+            ">= 1",
+        )?;
+        require(
+            self.init_max_trials >= 1,
+            "init_max_trials",
+            self.init_max_trials,
+            ">= 1",
+        )?;
+        self.triangulation
+            .check()
+            .map_err(|e| e.within("triangulation"))?;
+        self.pnp.check().map_err(|e| e.within("pnp"))?;
+        for (name, value) in [
+            ("filter_max_error_px", self.filter_max_error_px),
+            ("merge_max_error_px", self.merge_max_error_px),
+        ] {
+            require(
+                value.is_finite() && value > 0.0,
+                name,
+                value,
+                "finite and > 0",
+            )?;
+        }
+        require(
+            (0.0..90.0).contains(&self.filter_min_angle_deg),
+            "filter_min_angle_deg",
+            self.filter_min_angle_deg,
+            "in [0, 90)",
+        )?;
+        require(
+            self.global_ba_growth.is_finite() && self.global_ba_growth >= 1.0,
+            "global_ba_growth",
+            self.global_ba_growth,
+            "finite and >= 1",
+        )?;
+        require(
+            self.intermediate_function_tolerance.is_finite()
+                && self.intermediate_function_tolerance >= 0.0,
+            "intermediate_function_tolerance",
+            self.intermediate_function_tolerance,
+            "finite and >= 0",
+        )?;
+        self.bundle.check().map_err(|e| e.within("bundle"))?;
+        require(
+            self.min_model_images >= 2,
+            "min_model_images",
+            self.min_model_images,
+            ">= 2",
+        )?;
+        require(self.max_models >= 1, "max_models", self.max_models, ">= 1")?;
+        require(
+            self.retry_min_inliers >= 4,
+            "retry_min_inliers",
+            self.retry_min_inliers,
+            ">= 4 (P3P's sample and one check)",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.retry_min_inlier_ratio),
+            "retry_min_inlier_ratio",
+            self.retry_min_inlier_ratio,
+            "in [0, 1]",
+        )?;
+        require(
+            self.merge_min_points >= 3,
+            "merge_min_points",
+            self.merge_min_points,
+            ">= 3 (a similarity's sample)",
+        )
     }
 }
 
@@ -260,6 +356,8 @@ pub enum MapperError {
     },
     #[error(transparent)]
     Bundle(#[from] BundleError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 // ---------------------------------------------------------------------------------------
@@ -396,26 +494,122 @@ impl Correspondences {
 // ---------------------------------------------------------------------------------------
 // The model under construction.
 
-struct Builder<'a> {
+/// What every step of the mapper reads, built once per run (COLMAP's IncrementalMapper
+/// holds the same behind its database cache): the input, the settings, the tracks and the
+/// correspondence graph built from the input, and the time spent per step.
+struct MapperContext<'a> {
     input: &'a MapperInput,
     config: &'a MapperConfig,
-    tracks: &'a Tracks,
-    image_index: &'a HashMap<u32, usize>,
+    /// Position of each image id in `input.images`.
+    image_index: HashMap<u32, usize>,
+    tracks: Tracks,
     /// Keypoint-level matches (the correspondence graph) that tracks are continued,
     /// completed and merged through.
-    corrs: &'a Correspondences,
-    times: &'a RefCell<MapperTimes>,
-    rec: Reconstruction,
-    next_point_id: u64,
+    corrs: Correspondences,
+    times: RefCell<MapperTimes>,
+}
+
+impl<'a> MapperContext<'a> {
+    /// Checks the input (cameras, images and keypoints it refers to exist) and builds the
+    /// tracks and the correspondence graph.
+    fn new(input: &'a MapperInput, config: &'a MapperConfig) -> Result<Self, MapperError> {
+        let image_index: HashMap<u32, usize> = input
+            .images
+            .iter()
+            .enumerate()
+            .map(|(i, im)| (im.id, i))
+            .collect();
+        check_input(input, &image_index)?;
+        let pair_matches: Vec<PairMatches> = input
+            .pairs
+            .iter()
+            .map(|p| PairMatches {
+                image_a: p.image1,
+                image_b: p.image2,
+                matches: p.inliers.clone(),
+            })
+            .collect();
+        let tracks = build_tracks(&pair_matches);
+        let corrs = Correspondences::new(input, &image_index);
+        Ok(MapperContext {
+            input,
+            config,
+            image_index,
+            tracks,
+            corrs,
+            times: RefCell::new(MapperTimes::default()),
+        })
+    }
+
+    fn image(&self, id: u32) -> &'a MapperImage {
+        &self.input.images[self.image_index[&id]]
+    }
+
+    /// Runs `f`, adding its wall time to `phase`.
+    fn timed<T>(&self, phase: Phase, f: impl FnOnce() -> T) -> T {
+        let t0 = std::time::Instant::now();
+        let r = f();
+        self.times
+            .borrow_mut()
+            .add(phase, t0.elapsed().as_secs_f64());
+        r
+    }
+}
+
+/// The model under construction, and the steps that grow it (COLMAP's IncrementalMapper:
+/// register, triangulate, refine, filter).
+struct Builder<'a> {
+    ctx: &'a MapperContext<'a>,
     /// Images already in some model (this one or an earlier one).
     used: &'a BTreeSet<u32>,
+    /// Settings of new points: `ctx.config.triangulation`, except while an initial pair is
+    /// judged (every angle accepted, see `try_initial_pair`).
+    triangulation: TriangulationConfig,
+    rec: Reconstruction,
+    /// The two images whose poses fix the gauge of global adjustments (the initial pair).
+    gauge: (u32, u32),
+    next_point_id: u64,
     /// Images that failed registration since the model last changed.
     failed: BTreeSet<u32>,
 }
 
 impl<'a> Builder<'a> {
+    /// An empty model whose gauge the images of `gauge` will fix.
+    fn new(ctx: &'a MapperContext<'a>, used: &'a BTreeSet<u32>, gauge: (u32, u32)) -> Self {
+        Builder::from_model(
+            ctx,
+            used,
+            Model {
+                rec: Reconstruction::default(),
+                gauge,
+            },
+        )
+    }
+
+    /// A builder continuing from an existing model (after a merge).
+    fn from_model(ctx: &'a MapperContext<'a>, used: &'a BTreeSet<u32>, model: Model) -> Self {
+        let next_point_id = model.rec.points3d.keys().max().map_or(1, |m| m + 1);
+        Builder {
+            ctx,
+            used,
+            triangulation: ctx.config.triangulation.clone(),
+            rec: model.rec,
+            gauge: model.gauge,
+            next_point_id,
+            failed: BTreeSet::new(),
+        }
+    }
+
+    /// The model built.
+    fn into_model(self) -> Model {
+        Model {
+            rec: self.rec,
+            gauge: self.gauge,
+        }
+    }
+
     fn image_input(&self, id: u32) -> &'a MapperImage {
-        &self.input.images[self.image_index[&id]]
+        self.ctx.image(id)
     }
 
     fn view_of<'b>(&'b self, el: &TrackElement) -> Option<View<'b>> {
@@ -430,9 +624,10 @@ impl<'a> Builder<'a> {
     fn add_image(&mut self, id: u32, pose: CamFromWorld) {
         let inp = self.image_input(id);
         if !self.rec.cameras.contains_key(&inp.camera_id) {
-            self.rec
-                .cameras
-                .insert(inp.camera_id, self.input.cameras[&inp.camera_id].clone());
+            self.rec.cameras.insert(
+                inp.camera_id,
+                self.ctx.input.cameras[&inp.camera_id].clone(),
+            );
         }
         self.rec.images.insert(
             id,
@@ -474,7 +669,7 @@ impl<'a> Builder<'a> {
     /// Reprojection error of `x` at observation `el` (pixels), if its image is registered and
     /// the point is in front of the camera.
     fn error_at(&self, el: &TrackElement, x: &Vector3<f64>) -> Option<f64> {
-        crate::triangulation::reprojection_error(&self.view_of(el)?, x)
+        crate::geometry::triangulation::reprojection_error(&self.view_of(el)?, x)
     }
 
     fn has_image(&self, pid: u64, image_id: u32) -> bool {
@@ -500,7 +695,7 @@ impl<'a> Builder<'a> {
             return false;
         }
         let views: Vec<View> = elements.iter().filter_map(|e| self.view_of(e)).collect();
-        let Ok(tri) = triangulate(&views, &self.config.triangulation) else {
+        let Ok(tri) = triangulate(&views, &self.triangulation) else {
             return false;
         };
         let track: Vec<TrackElement> = tri.inliers.iter().map(|&i| elements[i]).collect();
@@ -527,7 +722,7 @@ impl<'a> Builder<'a> {
 
     /// The registered, not yet triangulated observations of track `t`.
     fn free_elements(&self, t: usize) -> Vec<TrackElement> {
-        self.tracks.tracks[t]
+        self.ctx.tracks.tracks[t]
             .elements
             .iter()
             .filter(|e| {
@@ -542,7 +737,7 @@ impl<'a> Builder<'a> {
 
     /// Whether some observation of track `t` already has a point.
     fn track_has_point(&self, t: usize) -> bool {
-        self.tracks.tracks[t]
+        self.ctx.tracks.tracks[t]
             .elements
             .iter()
             .any(|e| self.point_at(e).is_some())
@@ -569,11 +764,11 @@ impl<'a> Builder<'a> {
                 continue;
             }
             candidates.clear();
-            for c in self.corrs.of(image_id, kp) {
+            for c in self.ctx.corrs.of(image_id, kp) {
                 candidates.extend(self.point_at(c));
             }
-            if let Some(t) = self.tracks.track_of(image_id, kp) {
-                for e in &self.tracks.tracks[t].elements {
+            if let Some(t) = self.ctx.tracks.track_of(image_id, kp) {
+                for e in &self.ctx.tracks.tracks[t].elements {
                     candidates.extend(self.point_at(e));
                 }
             }
@@ -586,7 +781,7 @@ impl<'a> Builder<'a> {
                 }
                 let pos = self.rec.points3d[&pid].position.coords;
                 if let Some(e) = self.error_at(&el, &pos)
-                    && e <= self.config.filter_max_error_px
+                    && e <= self.ctx.config.filter_max_error_px
                     && best.is_none_or(|b| e < b.0)
                 {
                     best = Some((e, pid));
@@ -608,9 +803,9 @@ impl<'a> Builder<'a> {
             }
             elements.clear();
             elements.push(el);
-            let track = self.tracks.track_of(image_id, kp);
-            let rest = track.map_or(&[][..], |t| &self.tracks.tracks[t].elements[..]);
-            for c in self.corrs.of(image_id, kp).iter().chain(rest) {
+            let track = self.ctx.tracks.track_of(image_id, kp);
+            let rest = track.map_or(&[][..], |t| &self.ctx.tracks.tracks[t].elements[..]);
+            for c in self.ctx.corrs.of(image_id, kp).iter().chain(rest) {
                 if elements.iter().any(|e| e.image_id == c.image_id) {
                     continue;
                 }
@@ -638,7 +833,7 @@ impl<'a> Builder<'a> {
     /// moved the poses, or a point was deleted).
     fn retriangulate(&mut self) -> usize {
         let mut made = 0;
-        for t in 0..self.tracks.tracks.len() {
+        for t in 0..self.ctx.tracks.tracks.len() {
             if self.track_has_point(t) {
                 continue;
             }
@@ -666,7 +861,7 @@ impl<'a> Builder<'a> {
         for _ in 0..COMPLETE_MAX_TRANSITIVITY {
             let mut next = Vec::new();
             for el in &frontier {
-                for c in self.corrs.of(el.image_id, el.point2d_idx) {
+                for c in self.ctx.corrs.of(el.image_id, el.point2d_idx) {
                     let free = self
                         .rec
                         .images
@@ -677,7 +872,7 @@ impl<'a> Builder<'a> {
                     }
                     if self
                         .error_at(c, &pos)
-                        .is_some_and(|e| e <= self.config.filter_max_error_px)
+                        .is_some_and(|e| e <= self.ctx.config.filter_max_error_px)
                     {
                         self.add_observation(pid, *c);
                         next.push(*c);
@@ -705,7 +900,7 @@ impl<'a> Builder<'a> {
             };
             let mut others: Vec<u64> = Vec::new();
             for el in &p.track {
-                for c in self.corrs.of(el.image_id, el.point2d_idx) {
+                for c in self.ctx.corrs.of(el.image_id, el.point2d_idx) {
                     if let Some(q) = self.point_at(c)
                         && q != pid
                     {
@@ -731,10 +926,10 @@ impl<'a> Builder<'a> {
                 if views.len() != union.len() {
                     continue;
                 }
-                let x = crate::triangulation::refine_point(&views, mean);
+                let x = crate::geometry::triangulation::refine_point(&views, mean);
                 let ok = views.iter().all(|v| {
-                    crate::triangulation::reprojection_error(v, &x)
-                        .is_some_and(|e| e <= self.config.filter_max_error_px)
+                    crate::geometry::triangulation::reprojection_error(v, &x)
+                        .is_some_and(|e| e <= self.ctx.config.filter_max_error_px)
                 });
                 if !ok {
                     continue;
@@ -816,8 +1011,8 @@ impl<'a> Builder<'a> {
             let mut drop = Vec::new();
             for el in &point.track {
                 let ok = self.view_of(el).is_some_and(|v| {
-                    crate::triangulation::reprojection_error(&v, &pos)
-                        .is_some_and(|e| e <= self.config.filter_max_error_px)
+                    crate::geometry::triangulation::reprojection_error(&v, &pos)
+                        .is_some_and(|e| e <= self.ctx.config.filter_max_error_px)
                 });
                 if ok { keep.push(*el) } else { drop.push(*el) }
             }
@@ -831,7 +1026,7 @@ impl<'a> Builder<'a> {
                     angle = angle.max(ray_angle(a, b, &pos));
                 }
             }
-            if keep.len() < 2 || angle.to_degrees() < self.config.filter_min_angle_deg {
+            if keep.len() < 2 || angle.to_degrees() < self.ctx.config.filter_min_angle_deg {
                 self.delete_point(pid);
                 removed += 1;
                 continue;
@@ -852,10 +1047,10 @@ impl<'a> Builder<'a> {
 
     /// Which tracks have an observation with a point.
     fn tracks_with_points(&self) -> Vec<bool> {
-        let mut with = vec![false; self.tracks.tracks.len()];
+        let mut with = vec![false; self.ctx.tracks.tracks.len()];
         for p in self.rec.points3d.values() {
             for el in &p.track {
-                if let Some(t) = self.tracks.track_of(el.image_id, el.point2d_idx) {
+                if let Some(t) = self.ctx.tracks.track_of(el.image_id, el.point2d_idx) {
                     with[t] = true;
                 }
             }
@@ -867,6 +1062,7 @@ impl<'a> Builder<'a> {
     fn next_images(&self) -> Vec<(u32, usize)> {
         let with_point = self.tracks_with_points();
         let mut ranked: Vec<(u32, usize)> = self
+            .ctx
             .input
             .images
             .iter()
@@ -875,7 +1071,8 @@ impl<'a> Builder<'a> {
             .map(|im| {
                 let n = (0..im.keypoints.len() as u32)
                     .filter(|&kp| {
-                        self.tracks
+                        self.ctx
+                            .tracks
                             .track_of(im.id, kp)
                             .is_some_and(|t| with_point[t])
                     })
@@ -900,11 +1097,11 @@ impl<'a> Builder<'a> {
         let mut pids: Vec<u64> = Vec::new();
         for (kp, px) in inp.keypoints.iter().enumerate() {
             pids.clear();
-            for c in self.corrs.of(image_id, kp as u32) {
+            for c in self.ctx.corrs.of(image_id, kp as u32) {
                 pids.extend(self.point_at(c));
             }
-            if let Some(t) = self.tracks.track_of(image_id, kp as u32) {
-                for e in &self.tracks.tracks[t].elements {
+            if let Some(t) = self.ctx.tracks.track_of(image_id, kp as u32) {
+                for e in &self.ctx.tracks.tracks[t].elements {
                     pids.extend(self.point_at(e));
                 }
             }
@@ -919,10 +1116,10 @@ impl<'a> Builder<'a> {
             .rec
             .cameras
             .get(&inp.camera_id)
-            .unwrap_or(&self.input.cameras[&inp.camera_id])
+            .unwrap_or(&self.ctx.input.cameras[&inp.camera_id])
             .clone();
         // A camera not yet refined by any registered image is only a prior: search its focal.
-        let camera_known = self.config.calibrated
+        let camera_known = self.ctx.config.calibrated
             || self
                 .rec
                 .images
@@ -932,11 +1129,13 @@ impl<'a> Builder<'a> {
             estimate_focal: !camera_known,
             refine_intrinsics: !camera_known,
             seed: image_id as u64,
-            ..self.config.pnp.clone()
+            ..self.ctx.config.pnp.clone()
         };
         if relaxed && camera_known {
-            pnp.min_inliers = pnp.min_inliers.min(self.config.retry_min_inliers);
-            pnp.min_inlier_ratio = pnp.min_inlier_ratio.max(self.config.retry_min_inlier_ratio);
+            pnp.min_inliers = pnp.min_inliers.min(self.ctx.config.retry_min_inliers);
+            pnp.min_inlier_ratio = pnp
+                .min_inlier_ratio
+                .max(self.ctx.config.retry_min_inlier_ratio);
         }
         let result = match estimate_pose(&camera, &pixels, &world, &pnp) {
             Ok(r) => r,
@@ -970,15 +1169,16 @@ impl<'a> Builder<'a> {
                 .filter(|(px, w)| {
                     let xc =
                         result.cam_from_world.0.rotation * *w + result.cam_from_world.0.translation;
-                    cam.image_from_cam(&xc.into())
-                        .is_some_and(|p| (p.coords - *px).norm() <= self.config.filter_max_error_px)
+                    cam.image_from_cam(&xc.into()).is_some_and(|p| {
+                        (p.coords - *px).norm() <= self.ctx.config.filter_max_error_px
+                    })
                 })
                 .count();
             if n < pnp.min_inliers || (n as f64) < pnp.min_inlier_ratio * pixels.len() as f64 {
                 tracing::debug!(
                     "image {image_id}: relaxed pose rejected: {n} of {} correspondences within {} px",
                     pixels.len(),
-                    self.config.filter_max_error_px
+                    self.ctx.config.filter_max_error_px
                 );
                 return false;
             }
@@ -1023,6 +1223,7 @@ impl<'a> Builder<'a> {
             return None;
         }
         let mut pairs: Vec<(&MapperPair, bool)> = self
+            .ctx
             .input
             .pairs
             .iter()
@@ -1035,7 +1236,7 @@ impl<'a> Builder<'a> {
                     None
                 }
             })
-            .filter(|(p, _)| p.inliers.len() >= self.config.retry_min_inliers && !p.homography)
+            .filter(|(p, _)| p.inliers.len() >= self.ctx.config.retry_min_inliers && !p.homography)
             .collect();
         pairs.sort_by_key(|p| std::cmp::Reverse(p.0.inliers.len()));
         let new_input = self.image_input(image_id);
@@ -1066,7 +1267,7 @@ impl<'a> Builder<'a> {
                 continue;
             };
             let n_inl = inliers.iter().filter(|&&b| b).count();
-            if n_inl < self.config.retry_min_inliers || 2 * n_inl < pts.len() {
+            if n_inl < self.ctx.config.retry_min_inliers || 2 * n_inl < pts.len() {
                 continue;
             }
             // x_new = R_rel (R_reg X + t_reg) + s t_rel: each correspondence's normalised
@@ -1102,7 +1303,7 @@ impl<'a> Builder<'a> {
                     let xc = pose.0.rotation * *x + pose.0.translation;
                     xc.z > 0.0
                         && camera.image_from_cam(&xc.into()).is_some_and(|p| {
-                            (p.coords - *px).norm() <= self.config.filter_max_error_px
+                            (p.coords - *px).norm() <= self.ctx.config.filter_max_error_px
                         })
                 })
                 .count();
@@ -1110,7 +1311,7 @@ impl<'a> Builder<'a> {
                 "image {image_id} through its pair with image {other}: {n_inl} of {} matches fit the relative pose; {good} of {} correspondences within {} px at baseline scale {scale:.4}",
                 pts.len(),
                 pixels.len(),
-                self.config.filter_max_error_px
+                self.ctx.config.filter_max_error_px
             );
             if good >= PAIR_MIN_CHECKS && 2 * good >= pixels.len() {
                 return Some(pose);
@@ -1133,18 +1334,19 @@ impl<'a> Builder<'a> {
     /// A global adjustment; `fully`: to the convergence of `config.bundle` (the end of a
     /// model, and the initial pair), otherwise as an intermediate one (see
     /// [`MapperConfig::intermediate_function_tolerance`]).
-    fn global_ba(&mut self, gauge: (u32, u32), fully: bool) -> Result<(), MapperError> {
+    fn global_ba(&mut self, fully: bool) -> Result<(), MapperError> {
+        let gauge = self.gauge;
         let setup = BundleSetup {
             gauge: Gauge::Pair(gauge.0, gauge.1),
             ..BundleSetup::global(&self.rec)
         };
-        let mut bc = bundle_config(self.config);
+        let mut bc = bundle_config(self.ctx.config);
         if !fully {
-            bc.max_iterations = self.config.global_ba_max_iterations;
-            bc.function_tolerance = self.config.intermediate_function_tolerance;
+            bc.max_iterations = self.ctx.config.global_ba_max_iterations;
+            bc.function_tolerance = self.ctx.config.intermediate_function_tolerance;
         }
         let summary = bundle_adjust(&mut self.rec, &setup, &bc)?;
-        self.times.borrow_mut().global_iterations += summary.iterations;
+        self.ctx.times.borrow_mut().global_iterations += summary.iterations;
         tracing::debug!(
             "global adjustment of {} images, {} points: {:?}; cameras {:?}",
             self.rec.images.len(),
@@ -1172,8 +1374,8 @@ pub(crate) fn bundle_config(config: &MapperConfig) -> BundleConfig {
 }
 
 /// Result of trying one initial pair.
-enum InitAttempt {
-    Ok(Reconstruction, u64),
+enum InitAttempt<'a> {
+    Ok(Builder<'a>),
     SmallAngle(f64),
     Failed,
 }
@@ -1186,20 +1388,39 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Builds one model; `None` with the reason when no initial pair works.
-#[allow(clippy::too_many_arguments)]
+/// A model and the two images that fix its gauge in global adjustments.
+struct Model {
+    rec: Reconstruction,
+    gauge: (u32, u32),
+}
+
+/// Builds one model from the images no model holds yet (`used`): an initial pair, grown until
+/// no image registers; the reason when no initial pair works.
 fn build_model(
-    input: &MapperInput,
-    config: &MapperConfig,
-    tracks: &Tracks,
-    corrs: &Correspondences,
-    times: &RefCell<MapperTimes>,
-    image_index: &HashMap<u32, usize>,
+    ctx: &MapperContext,
     used: &BTreeSet<u32>,
     progress: &dyn Progress,
 ) -> Result<Result<Model, Degeneracy>, MapperError> {
-    // Candidate initial pairs: both images unused, enough inliers.
-    let mut candidates: Vec<&MapperPair> = input
+    let mut b = match ctx.timed(Phase::Initial, || initial_model(ctx, used))? {
+        Ok(b) => b,
+        Err(why) => return Ok(Err(why)),
+    };
+    progress.advance(2);
+    grow(&mut b, progress)?;
+    Ok(Ok(b.into_model()))
+}
+
+/// The two-view model of the first candidate pair (both images unused, at least
+/// `init_min_inliers` inliers, not a homography, most inliers first) whose median
+/// triangulation angle reaches `init_min_angle_deg` (then half of it), and the pair that fixes
+/// its gauge; the reason when none does (COLMAP's FindInitialImagePair).
+fn initial_model<'a>(
+    ctx: &'a MapperContext<'a>,
+    used: &'a BTreeSet<u32>,
+) -> Result<Result<Builder<'a>, Degeneracy>, MapperError> {
+    let config = ctx.config;
+    let mut candidates: Vec<&MapperPair> = ctx
+        .input
         .pairs
         .iter()
         .filter(|p| !used.contains(&p.image1) && !used.contains(&p.image2))
@@ -1228,67 +1449,25 @@ fn build_model(
             .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
     });
     let mut best_angle: f64 = 0.0;
-    let mut chosen = None;
-    let t0 = std::time::Instant::now();
-    'angles: for min_angle in [config.init_min_angle_deg, 0.5 * config.init_min_angle_deg] {
+    for min_angle in [config.init_min_angle_deg, 0.5 * config.init_min_angle_deg] {
         for pair in candidates.iter().take(config.init_max_trials) {
-            match try_initial_pair(
-                input,
-                config,
-                tracks,
-                corrs,
-                times,
-                image_index,
-                used,
-                pair,
-                min_angle,
-            )? {
-                InitAttempt::Ok(rec, next) => {
-                    chosen = Some((pair, rec, next));
-                    break 'angles;
-                }
+            match try_initial_pair(ctx, used, pair, min_angle)? {
+                InitAttempt::Ok(b) => return Ok(Ok(b)),
                 InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
                 InitAttempt::Failed => {}
             }
         }
     }
-    times
-        .borrow_mut()
-        .add(Phase::Initial, t0.elapsed().as_secs_f64());
-    let Some((pair, rec, next_point_id)) = chosen else {
-        return Ok(Err(Degeneracy::NoParallax {
-            best_median_angle_deg: best_angle,
-            needed_deg: 0.5 * config.init_min_angle_deg,
-        }));
-    };
-    let gauge = (pair.image1, pair.image2);
-    let mut b = Builder {
-        input,
-        config,
-        tracks,
-        image_index,
-        rec,
-        corrs,
-        times,
-        next_point_id,
-        used,
-        failed: BTreeSet::new(),
-    };
-    progress.advance(2);
-    grow(&mut b, gauge, progress)?;
-    Ok(Ok(Model { rec: b.rec, gauge }))
-}
-
-/// A model and the two images that fix its gauge in global adjustments.
-struct Model {
-    rec: Reconstruction,
-    gauge: (u32, u32),
+    Ok(Err(Degeneracy::NoParallax {
+        best_median_angle_deg: best_angle,
+        needed_deg: 0.5 * config.init_min_angle_deg,
+    }))
 }
 
 /// Registers images into the model until none fits, then adjusts it globally (steps 3 to 5
-/// of the module documentation).
-fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(), MapperError> {
-    let config = b.config;
+/// of the module documentation; COLMAP's IncrementalPipeline::ReconstructSubModel).
+fn grow(b: &mut Builder, progress: &dyn Progress) -> Result<(), MapperError> {
+    let config = b.ctx.config;
     let mut last_global = b.rec.images.len();
     loop {
         let mut registered = b.register_next(false);
@@ -1296,7 +1475,7 @@ fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(
             // Nothing registers at the normal thresholds: adjust everything, retriangulate
             // with the improved poses, and try every image again with relaxed thresholds.
             if b.rec.images.len() > last_global {
-                b.global_refinement(gauge, false)?;
+                b.global_refinement(false)?;
                 last_global = b.rec.images.len();
             }
             b.failed.clear();
@@ -1308,11 +1487,11 @@ fn grow(b: &mut Builder, gauge: (u32, u32), progress: &dyn Progress) -> Result<(
         b.timed(Phase::Triangulate, |b| b.extend_and_triangulate(id));
         b.local_refinement(id)?;
         if b.rec.images.len() as f64 >= config.global_ba_growth * last_global as f64 {
-            b.global_refinement(gauge, false)?;
+            b.global_refinement(false)?;
             last_global = b.rec.images.len();
         }
     }
-    b.global_refinement(gauge, true)?;
+    b.global_refinement(true)?;
     for p in b.rec.points3d.values_mut() {
         p.track.sort_by_key(|e| (e.image_id, e.point2d_idx));
     }
@@ -1323,7 +1502,8 @@ impl Builder<'_> {
     fn timed<T>(&mut self, phase: Phase, f: impl FnOnce(&mut Self) -> T) -> T {
         let t0 = std::time::Instant::now();
         let r = f(self);
-        self.times
+        self.ctx
+            .times
             .borrow_mut()
             .add(phase, t0.elapsed().as_secs_f64());
         r
@@ -1332,15 +1512,15 @@ impl Builder<'_> {
     /// The local adjustment after `image_id` registered, then completion and merging of the
     /// points it moved, and filtering (COLMAP's local refinement).
     fn local_refinement(&mut self, image_id: u32) -> Result<(), MapperError> {
-        let setup = BundleSetup::local(&self.rec, image_id, self.config.local_ba_images);
+        let setup = BundleSetup::local(&self.rec, image_id, self.ctx.config.local_ba_images);
         let local_images = setup.images.clone();
-        let mut bundle = bundle_config(self.config);
-        bundle.max_iterations = self.config.local_ba_max_iterations;
-        bundle.function_tolerance = self.config.intermediate_function_tolerance;
+        let mut bundle = bundle_config(self.ctx.config);
+        bundle.max_iterations = self.ctx.config.local_ba_max_iterations;
+        bundle.function_tolerance = self.ctx.config.intermediate_function_tolerance;
         let summary = self.timed(Phase::LocalBundle, |b| {
             bundle_adjust(&mut b.rec, &setup, &bundle)
         })?;
-        self.times.borrow_mut().local_iterations += summary.iterations;
+        self.ctx.times.borrow_mut().local_iterations += summary.iterations;
         self.timed(Phase::CompleteMerge, |b| {
             b.complete_and_merge(Some(&local_images))
         });
@@ -1351,7 +1531,7 @@ impl Builder<'_> {
     /// Retriangulation, completion and merging over the whole model, then global adjustments
     /// each followed by completion, merging and filtering, until an adjustment changes few
     /// observations (COLMAP's iterative global refinement).
-    fn global_refinement(&mut self, gauge: (u32, u32), fully: bool) -> Result<(), MapperError> {
+    fn global_refinement(&mut self, fully: bool) -> Result<(), MapperError> {
         /// Most adjustments per refinement, and the fraction of observations whose change
         /// stops it early (COLMAP: 5 and 0.0005).
         const MAX_ROUNDS: usize = 5;
@@ -1360,7 +1540,7 @@ impl Builder<'_> {
         self.timed(Phase::CompleteMerge, |b| b.complete_and_merge(None));
         for _ in 0..MAX_ROUNDS {
             let before = self.num_observations();
-            self.timed(Phase::GlobalBundle, |b| b.global_ba(gauge, fully))?;
+            self.timed(Phase::GlobalBundle, |b| b.global_ba(fully))?;
             let (added, merged) = self.timed(Phase::CompleteMerge, |b| b.complete_and_merge(None));
             let removed = self.timed(Phase::Filter, |b| b.filter_points(None));
             let changed = added + merged + removed;
@@ -1641,51 +1821,20 @@ fn merge_models(
     Some(merged)
 }
 
-impl<'a> Builder<'a> {
-    /// A builder continuing from an existing model (after a merge).
-    #[allow(clippy::too_many_arguments)]
-    fn from_model(
-        input: &'a MapperInput,
-        config: &'a MapperConfig,
-        tracks: &'a Tracks,
-        corrs: &'a Correspondences,
-        times: &'a RefCell<MapperTimes>,
-        image_index: &'a HashMap<u32, usize>,
-        used: &'a BTreeSet<u32>,
-        rec: Reconstruction,
-    ) -> Self {
-        let next_point_id = rec.points3d.keys().max().map_or(1, |m| m + 1);
-        Builder {
-            input,
-            config,
-            tracks,
-            image_index,
-            corrs,
-            times,
-            rec,
-            next_point_id,
-            used,
-            failed: BTreeSet::new(),
-        }
-    }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn try_initial_pair(
-    input: &MapperInput,
-    config: &MapperConfig,
-    tracks: &Tracks,
-    corrs: &Correspondences,
-    times: &RefCell<MapperTimes>,
-    image_index: &HashMap<u32, usize>,
-    used: &BTreeSet<u32>,
+/// Tries `pair` as the start of a model: its relative pose (from the two-view geometry, else
+/// the five-point essential matrix under the prior intrinsics), its points, judged by their
+/// median triangulation angle against `min_angle_deg`, then a global adjustment and filtering.
+fn try_initial_pair<'a>(
+    ctx: &'a MapperContext<'a>,
+    used: &'a BTreeSet<u32>,
     pair: &MapperPair,
     min_angle_deg: f64,
-) -> Result<InitAttempt, MapperError> {
-    let im1 = &input.images[image_index[&pair.image1]];
-    let im2 = &input.images[image_index[&pair.image2]];
-    let c1 = &input.cameras[&im1.camera_id];
-    let c2 = &input.cameras[&im2.camera_id];
+) -> Result<InitAttempt<'a>, MapperError> {
+    let config = ctx.config;
+    let im1 = ctx.image(pair.image1);
+    let im2 = ctx.image(pair.image2);
+    let c1 = &ctx.input.cameras[&im1.camera_id];
+    let c2 = &ctx.input.cameras[&im2.camera_id];
     let pose = match pair.cam2_from_cam1 {
         Some(p) => p,
         None => {
@@ -1705,28 +1854,11 @@ fn try_initial_pair(
             }
         }
     };
-    let mut b = Builder {
-        input,
-        config,
-        tracks,
-        image_index,
-        corrs,
-        times,
-        rec: Reconstruction::default(),
-        next_point_id: 1,
-        used,
-        failed: BTreeSet::new(),
-    };
+    let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
     b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
     b.add_image(pair.image2, CamFromWorld(pose));
     // Triangulate with a permissive angle first; the pair is judged by the median angle.
-    let mut tri_cfg = config.triangulation.clone();
-    tri_cfg.min_angle_deg = 0.0;
-    let relaxed = MapperConfig {
-        triangulation: tri_cfg,
-        ..config.clone()
-    };
-    b.config = &relaxed;
+    b.triangulation.min_angle_deg = 0.0;
     b.extend_and_triangulate(pair.image1);
     let angles: Vec<f64> = b
         .rec
@@ -1745,27 +1877,18 @@ fn try_initial_pair(
     if med < min_angle_deg {
         return Ok(InitAttempt::SmallAngle(med));
     }
-    b.config = config;
-    b.global_ba((pair.image1, pair.image2), true)?;
+    b.triangulation = config.triangulation.clone();
+    b.global_ba(true)?;
     b.filter_points(None);
     if b.rec.points3d.len() < config.init_min_points {
         return Ok(InitAttempt::Failed);
     }
-    Ok(InitAttempt::Ok(b.rec, b.next_point_id))
+    Ok(InitAttempt::Ok(b))
 }
 
-/// Builds models from verified pairs (see the module documentation).
-pub fn map(
-    input: &MapperInput,
-    config: &MapperConfig,
-    progress: &dyn Progress,
-) -> Result<MapperOutput, MapperError> {
-    let image_index: HashMap<u32, usize> = input
-        .images
-        .iter()
-        .enumerate()
-        .map(|(i, im)| (im.id, i))
-        .collect();
+/// The mapper's errors on inconsistent input: an image with an unknown camera, a pair with an
+/// unknown image, a match to a keypoint an image does not have.
+fn check_input(input: &MapperInput, image_index: &HashMap<u32, usize>) -> Result<(), MapperError> {
     for im in &input.images {
         if !input.cameras.contains_key(&im.camera_id) {
             return Err(MapperError::UnknownCamera {
@@ -1796,41 +1919,25 @@ pub fn map(
             }
         }
     }
-    let pair_matches: Vec<PairMatches> = input
-        .pairs
-        .iter()
-        .map(|p| PairMatches {
-            image_a: p.image1,
-            image_b: p.image2,
-            matches: p.inliers.clone(),
-        })
-        .collect();
-    let tracks = build_tracks(&pair_matches);
-    let corrs = Correspondences::new(input, &image_index);
-    let times = RefCell::new(MapperTimes::default());
+    Ok(())
+}
+
+/// Builds models from verified pairs (see the module documentation), as COLMAP's
+/// IncrementalPipeline does: models one after the other from the images no model holds yet,
+/// then the models that share tracks merged.
+pub fn map(
+    input: &MapperInput,
+    config: &MapperConfig,
+    progress: &dyn Progress,
+) -> Result<MapperOutput, MapperError> {
+    config.check()?;
+    let ctx = MapperContext::new(input, config)?;
     progress.begin("mapping", input.images.len() as u64);
     let mut used: BTreeSet<u32> = BTreeSet::new();
     let mut models = Vec::new();
     let mut reason = None;
-    while models.len() < config.max_models {
-        let remaining = input
-            .images
-            .iter()
-            .filter(|im| !used.contains(&im.id))
-            .count();
-        if remaining < 2 {
-            break;
-        }
-        match build_model(
-            input,
-            config,
-            &tracks,
-            &corrs,
-            &times,
-            &image_index,
-            &used,
-            progress,
-        )? {
+    while models.len() < config.max_models && unused_images(input, &used) >= 2 {
+        match build_model(&ctx, &used, progress)? {
             Ok(model) => {
                 used.extend(model.rec.images.keys().copied());
                 if model.rec.images.len() >= config.min_model_images {
@@ -1843,61 +1950,75 @@ pub fn map(
             }
         }
     }
-    // Models that share tracks are merged, largest first; a merged model is adjusted and
-    // grown again (images that fitted neither part may fit the union), until nothing merges.
+    merge_overlapping_models(&ctx, &mut models, progress)?;
+    progress.end();
+    Ok(mapper_output(ctx, models, reason))
+}
+
+fn unused_images(input: &MapperInput, used: &BTreeSet<u32>) -> usize {
+    input
+        .images
+        .iter()
+        .filter(|im| !used.contains(&im.id))
+        .count()
+}
+
+/// Merges models that share tracks, largest first; a merged model is adjusted and grown again
+/// (images that fitted neither part may fit the union), until nothing merges.
+fn merge_overlapping_models(
+    ctx: &MapperContext,
+    models: &mut Vec<Model>,
+    progress: &dyn Progress,
+) -> Result<(), MapperError> {
     'merging: loop {
         models.sort_by_key(|m| std::cmp::Reverse(m.rec.images.len()));
         for i in 0..models.len() {
             for j in i + 1..models.len() {
-                let t0 = std::time::Instant::now();
-                let merged = merge_models(&models[i].rec, &models[j].rec, &tracks, config);
-                times
-                    .borrow_mut()
-                    .add(Phase::MergeModels, t0.elapsed().as_secs_f64());
+                let merged = ctx.timed(Phase::MergeModels, || {
+                    merge_models(&models[i].rec, &models[j].rec, &ctx.tracks, ctx.config)
+                });
                 let Some(rec) = merged else {
                     continue;
                 };
                 models.remove(j);
-                let gauge = models[i].gauge;
                 let others: BTreeSet<u32> = models
                     .iter()
                     .enumerate()
                     .filter(|(k, _)| *k != i)
                     .flat_map(|(_, m)| m.rec.images.keys().copied())
                     .collect();
-                let mut b = Builder::from_model(
-                    input,
-                    config,
-                    &tracks,
-                    &corrs,
-                    &times,
-                    &image_index,
-                    &others,
-                    rec,
-                );
-                b.global_refinement(gauge, false)?;
-                grow(&mut b, gauge, progress)?;
-                used.extend(b.rec.images.keys().copied());
-                models[i].rec = b.rec;
+                let gauge = models[i].gauge;
+                let mut b = Builder::from_model(ctx, &others, Model { rec, gauge });
+                b.global_refinement(false)?;
+                grow(&mut b, progress)?;
+                models[i] = b.into_model();
                 continue 'merging;
             }
         }
-        break;
+        return Ok(());
     }
-    progress.end();
+}
+
+/// The models largest first, the images none registered and why.
+fn mapper_output(
+    ctx: MapperContext,
+    models: Vec<Model>,
+    reason: Option<Degeneracy>,
+) -> MapperOutput {
     let mut models: Vec<Reconstruction> = models.into_iter().map(|m| m.rec).collect();
     models.sort_by_key(|m| std::cmp::Reverse(m.images.len()));
     let registered: BTreeSet<u32> = models
         .iter()
         .flat_map(|m| m.images.keys().copied())
         .collect();
-    let unregistered: Vec<u32> = input
+    let unregistered: Vec<u32> = ctx
+        .input
         .images
         .iter()
         .map(|im| im.id)
         .filter(|id| !registered.contains(id))
         .collect();
-    Ok(MapperOutput {
+    MapperOutput {
         models,
         unregistered_reason: if unregistered.is_empty() {
             None
@@ -1905,10 +2026,10 @@ pub fn map(
             reason
         },
         unregistered,
-        tracks: tracks.tracks.len(),
-        split_track_components: tracks.split_components,
-        seconds: times.into_inner(),
-    })
+        tracks: ctx.tracks.tracks.len(),
+        split_track_components: ctx.tracks.split_components,
+        seconds: ctx.times.into_inner(),
+    }
 }
 
 /// Mapper input from a reconstruction whose keypoints and tracks are known (synthetic data,
@@ -1961,8 +2082,9 @@ pub fn input_from_tracks(rec: &Reconstruction) -> MapperInput {
 mod tests {
     use super::*;
     use crate::evaluate::evaluate_poses;
-    use crate::synthetic::{SplitMix, SyntheticConfig, look_at_origin, synthetic_reconstruction};
+    use crate::synthetic::{SyntheticConfig, look_at_origin, synthetic_reconstruction};
     use fresco_core::NoProgress;
+    use fresco_core::Rng;
     use nalgebra::UnitQuaternion;
 
     fn config() -> MapperConfig {
@@ -2179,7 +2301,7 @@ mod tests {
             ..Default::default()
         });
         rec.points3d.clear();
-        let mut rng = SplitMix::new(5);
+        let mut rng = Rng::new(5);
         let cam = rec.cameras[&1].clone();
         rec.images.clear();
         for i in 0..6u32 {

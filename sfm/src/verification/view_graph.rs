@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use petgraph::graph::{NodeIndex, UnGraph};
 use serde::Serialize;
 
-use crate::two_view::{PairKind, VerifiedPair};
+use crate::geometry::two_view::{PairKind, VerifiedPair};
 
 /// Images and the verified pairs between them.
 #[derive(Clone, Debug)]
@@ -115,7 +115,7 @@ impl ViewGraph {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::two_view::TwoViewGeometry;
+    use crate::geometry::two_view::TwoViewGeometry;
 
     fn pair(a: u32, b: u32, n: usize, kind: PairKind) -> VerifiedPair {
         let mut g = TwoViewGeometry::degenerate();

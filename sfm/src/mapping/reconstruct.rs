@@ -5,7 +5,7 @@
 //!   cameras grouped as COLMAP's camera modes do (`Auto`: one camera per photo size, EXIF
 //!   make/model and focal prior; `Single`; `PerImage`), initialised from the focal priors,
 //!   keypoint colours sampled from the photos;
-//! - [`run_sfm`]: mapping ([`crate::mapper::map`]), optional silhouette constraints
+//! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional silhouette constraints
 //!   (`silhouette.rs`, followed by a global adjustment), then the models are written to
 //!   `<ws>/sparse/0` (the largest), `<ws>/sparse/1`, ... (COLMAP text, each folder replaced as a
 //!   whole) and the main model's points to `<ws>/sparse/points.ply`; returns an
@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fresco_core::camera::CameraError;
+use fresco_core::config::ConfigError;
 use fresco_core::photo::{PhotoError, load_photo};
 use fresco_core::ply::PlyFormat;
 use fresco_core::{Camera, CameraModel, FormatError, Mesh, Progress, Reconstruction, colmap};
@@ -24,15 +25,15 @@ use nalgebra::Point2;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::bundle::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
 use crate::bundle::{BundleError, BundleSetup, bundle_adjust, intrinsics_covariance};
 use crate::evaluate::mean_reprojection_error;
 use crate::focal_prior::FocalSource;
-use crate::mapper::{
+use crate::geometry::two_view::PairKind;
+use crate::mapping::mapper::{
     Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes,
     bundle_config, map,
 };
-use crate::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
-use crate::two_view::PairKind;
 use crate::workspace::{ImageEntry, read_features, read_images, read_matches};
 
 /// How photos share cameras (intrinsics).
@@ -50,16 +51,19 @@ pub enum CameraMode {
 /// Settings of the sfm stage.
 #[derive(Clone, Debug)]
 pub struct SfmConfig {
-    /// Camera model of every camera. Default SIMPLE_RADIAL (COLMAP's default).
+    /// Camera model of every camera. Default: `SimpleRadial` (COLMAP's default).
     pub camera_model: CameraModel,
-    /// Default [`CameraMode::Auto`].
+    /// How photos share cameras. Default: `Auto` ([`CameraMode::Auto`]).
     pub camera_mode: CameraMode,
+    /// Default: `MapperConfig::default()`.
     pub mapper: MapperConfig,
     /// Folder of object masks (`<image name>.png`, `<stem>.png` or `<image name>`): silhouette
-    /// points join the main model before a final global adjustment. Default none.
+    /// points join the main model before a final global adjustment. Default: `None`.
     pub masks: Option<PathBuf>,
+    /// Default: `SilhouetteConfig::default()`.
     pub silhouette: SilhouetteConfig,
     /// Sample keypoint colours from the photos (default true; false: grey points).
+    /// Default: `true`.
     pub colours: bool,
 }
 
@@ -76,6 +80,14 @@ impl Default for SfmConfig {
     }
 }
 
+impl SfmConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.mapper.check().map_err(|e| e.within("mapper"))?;
+        self.silhouette.check().map_err(|e| e.within("silhouette"))
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum SfmError {
     #[error(transparent)]
@@ -84,12 +96,12 @@ pub enum SfmError {
     Photo(#[from] PhotoError),
     #[error("{path}: {message}")]
     Workspace { path: PathBuf, message: String },
-    #[error("camera for {image}: {source}")]
-    Camera {
-        image: String,
-        #[source]
-        source: CameraError,
-    },
+    /// The inner error is shown in the message, so it is not also the `source` (the
+    /// workspace rule: one or the other, never both).
+    #[error("camera for {image}: {error}")]
+    Camera { image: String, error: CameraError },
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     #[error(transparent)]
     Mapper(#[from] MapperError),
     #[error(transparent)]
@@ -113,6 +125,17 @@ pub struct Unregistered {
     pub reason: String,
 }
 
+/// A camera's focal-length prior, and where it came from (issue 18: users should see whether
+/// the focal length was measured, read from EXIF, or guessed).
+#[derive(Clone, Debug, Serialize)]
+pub struct FocalPriorSummary {
+    /// The focal length the mapper started from, pixels.
+    pub focal_px: f64,
+    /// Its source: calibration file, EXIF, or the 1.2 x max(w, h) default (the first
+    /// photo's, by id, of the camera's photos).
+    pub source: FocalSource,
+}
+
 /// What [`run_sfm`] did; the main model is the first (largest) one.
 #[derive(Clone, Debug, Serialize)]
 pub struct SfmSummary {
@@ -123,6 +146,8 @@ pub struct SfmSummary {
     pub camera_model: String,
     /// Focal lengths of the main model's cameras after adjustment, pixels, by camera id.
     pub focal_px: BTreeMap<u32, f64>,
+    /// Every camera's focal prior and its source, by camera id.
+    pub focal_priors: BTreeMap<u32, FocalPriorSummary>,
     /// Standard deviation of each refined intrinsic parameter of the main model's cameras
     /// (COLMAP's parameter names: f, cx, k1, ...), by camera id, from the covariance of the
     /// final adjustment (`bundle::intrinsics_covariance`): how well the photos determine the
@@ -175,9 +200,9 @@ fn camera_from_prior(id: u32, model: CameraModel, im: &ImageEntry) -> Result<Cam
     let [cx, cy] = model.principal_point_idxs();
     params[cx] = im.prior.cx;
     params[cy] = im.prior.cy;
-    Camera::new(id, model, im.width, im.height, params).map_err(|source| SfmError::Camera {
+    Camera::new(id, model, im.width, im.height, params).map_err(|error| SfmError::Camera {
         image: im.name.clone(),
-        source,
+        error,
     })
 }
 
@@ -522,6 +547,7 @@ pub fn run_sfm(
     config: &SfmConfig,
     progress: &dyn Progress,
 ) -> Result<SfmSummary, SfmError> {
+    config.check()?;
     let t0 = Instant::now();
     let (input, calibrated) = load_mapper_input(ws, config, progress)?;
     let seconds_load = t0.elapsed().as_secs_f64();
@@ -609,6 +635,24 @@ pub fn run_sfm(
             });
         }
     }
+    let source_of: HashMap<String, FocalSource> = read_images(ws)?
+        .images
+        .into_iter()
+        .map(|im| (im.name, im.prior.source))
+        .collect();
+    let mut focal_priors = BTreeMap::new();
+    for im in &input.images {
+        if let (Some(camera), Some(&source)) =
+            (input.cameras.get(&im.camera_id), source_of.get(&im.name))
+        {
+            focal_priors
+                .entry(im.camera_id)
+                .or_insert_with(|| FocalPriorSummary {
+                    focal_px: camera.focal(),
+                    source,
+                });
+        }
+    }
     Ok(SfmSummary {
         workspace: ws.to_path_buf(),
         images: input.images.len(),
@@ -620,6 +664,7 @@ pub fn run_sfm(
             .iter()
             .map(|(&id, c)| (id, c.focal()))
             .collect(),
+        focal_priors,
         intrinsics_std,
         registered: main.images.len(),
         points: main.points3d.len(),
@@ -698,4 +743,45 @@ pub fn read_reference(path: &Path, model: &Reconstruction) -> Result<Reconstruct
         return Ok(fresco_core::middlebury::views_to_reconstruction(&views));
     }
     read_model_or_workspace(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::focal_prior::FocalPrior;
+
+    /// A focal prior that is not a number gives an error naming the photo and saying what is
+    /// wrong once: the camera error is in the message and not also a source, so a reporter
+    /// that prints the chain (anyhow's `{:#}`) does not repeat it.
+    #[test]
+    fn a_bad_camera_is_reported_once() {
+        let image = ImageEntry {
+            id: 1,
+            name: "a.png".into(),
+            path: "a.png".into(),
+            width: 640,
+            height: 480,
+            num_keypoints: 0,
+            prior: FocalPrior {
+                focal_x: f64::NAN,
+                focal_y: f64::NAN,
+                cx: 320.0,
+                cy: 240.0,
+                source: FocalSource::Default,
+            },
+            exif_orientation: None,
+            camera_make: None,
+            camera_model: None,
+            contrast_threshold: None,
+        };
+        let e = camera_from_prior(1, CameraModel::SimpleRadial, &image).unwrap_err();
+        assert!(matches!(e, SfmError::Camera { .. }), "{e:?}");
+        assert!(std::error::Error::source(&e).is_none());
+        let message = e.to_string();
+        let SfmError::Camera { error, .. } = &e else {
+            unreachable!()
+        };
+        assert!(message.starts_with("camera for a.png: "), "{message}");
+        assert_eq!(message.matches(&error.to_string()).count(), 1, "{message}");
+    }
 }

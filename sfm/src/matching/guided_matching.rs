@@ -20,20 +20,20 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::feature_file::Descriptor;
+use crate::features::feature_file::Descriptor;
 
 /// Guided matching settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct GuidedConfig {
-    /// Largest Sampson distance (pixels) to the epipolar geometry. Default 4 (the RANSAC
+    /// Largest Sampson distance (pixels) to the epipolar geometry. Default: `4.0` (the RANSAC
     /// threshold of verification).
     pub max_error_px: f64,
-    /// Lowe's ratio among the allowed candidates. Default 0.8.
+    /// Lowe's ratio among the allowed candidates. Default: `0.8`.
     pub ratio: f32,
-    /// Largest angle between the two unit descriptors, radians. Default 0.7 (COLMAP's
+    /// Largest angle between the two unit descriptors, radians. Default: `0.7` (COLMAP's
     /// `max_distance`).
     pub max_angle_rad: f64,
-    /// Keep a match only if it is also the nearest allowed neighbour the other way. Default true.
+    /// Keep a match only if it is also the nearest allowed neighbour the other way. Default: `true`.
     pub mutual: bool,
 }
 
@@ -280,7 +280,7 @@ pub fn match_guided(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::Lcg;
+    use fresco_core::Rng;
 
     /// The obvious implementation: every pair tested.
     fn brute_force(
@@ -337,7 +337,7 @@ mod tests {
         out
     }
 
-    fn random_descriptor(rng: &mut Lcg) -> Descriptor {
+    fn random_descriptor(rng: &mut Rng) -> Descriptor {
         std::array::from_fn(|_| (rng.uniform() * 90.0) as u8)
     }
 
@@ -355,13 +355,13 @@ mod tests {
         Vec<Descriptor>,
         Matrix3<f64>,
     ) {
-        let s = crate::fundamental::tests::Scene::new(seed, n, false);
+        let s = crate::geometry::fundamental::tests::Scene::new(seed, n, false);
         let data = s.pixels(0.3, seed + 1);
-        let mut rng = Lcg(seed + 2);
+        let mut rng = Rng::new(seed + 2);
         let x1: Vec<_> = data.iter().map(|c| c.x1).collect();
         let mut x2: Vec<_> = data.iter().map(|c| c.x2).collect();
         let d1: Vec<Descriptor> = (0..n).map(|_| random_descriptor(&mut rng)).collect();
-        let noisy = |d: &Descriptor, rng: &mut Lcg| -> Descriptor {
+        let noisy = |d: &Descriptor, rng: &mut Rng| -> Descriptor {
             std::array::from_fn(|k| (d[k] as f64 + rng.range(-6.0, 6.0)).clamp(0.0, 255.0) as u8)
         };
         let mut d2: Vec<Descriptor> = d1.iter().map(|d| noisy(d, &mut rng)).collect();

@@ -8,6 +8,7 @@
 //! plain base `step = 1, offset = 0.5`; decimation (keeping every second pixel) doubles `step`
 //! and keeps `offset`. Keypoints are mapped back exactly with it.
 
+use fresco_core::config::{ConfigError, require};
 use std::mem::MaybeUninit;
 
 use fresco_core::photo::GreyImage;
@@ -17,14 +18,19 @@ use rayon::prelude::*;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScaleSpaceConfig {
     /// Intervals per octave `s` (Lowe: 3).
+    /// Default: `3`.
     pub intervals: usize,
     /// Blur of the first image of every octave, in that octave's pixels (Lowe: 1.6).
+    /// Default: `1.6`.
     pub sigma: f32,
     /// Blur already present in the input (Lowe: 0.5, the camera's anti-aliasing).
+    /// Default: `0.5`.
     pub input_blur: f32,
     /// Up-sample the input 2x before the first octave (Lowe section 3.3: about 4x more stable keypoints).
+    /// Default: `true`.
     pub upsample: bool,
     /// Octaves whose shorter side would fall below this many pixels are not built.
+    /// Default: `12`.
     pub min_octave_side: usize,
 }
 
@@ -37,6 +43,36 @@ impl Default for ScaleSpaceConfig {
             upsample: true,
             min_octave_side: 12,
         }
+    }
+}
+
+impl ScaleSpaceConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            (1..=10).contains(&self.intervals),
+            "intervals",
+            self.intervals,
+            "in 1..=10",
+        )?;
+        require(
+            self.sigma.is_finite() && self.sigma > 0.0,
+            "sigma",
+            self.sigma,
+            "finite and > 0",
+        )?;
+        require(
+            self.input_blur.is_finite() && self.input_blur >= 0.0 && self.input_blur < self.sigma,
+            "input_blur",
+            self.input_blur,
+            "finite, >= 0 and below `sigma`",
+        )?;
+        require(
+            self.min_octave_side >= 1,
+            "min_octave_side",
+            self.min_octave_side,
+            ">= 1",
+        )
     }
 }
 

@@ -10,10 +10,10 @@ use std::f32::consts::TAU;
 
 use fresco_core::photo::GreyImage;
 
-use crate::feature_file::{DESCRIPTOR_LEN, Descriptor};
+use crate::features::feature_file::{DESCRIPTOR_LEN, Descriptor};
 #[cfg(target_arch = "x86_64")]
-use crate::orientation::has_avx2_fma;
-use crate::orientation::{SCRATCH, WindowScratch, fast_atan2, fast_exp};
+use crate::features::orientation::has_avx2_fma;
+use crate::features::orientation::{SCRATCH, WindowScratch, fast_atan2, fast_exp};
 
 /// Spatial cells per side (Lowe: 4).
 const D: usize = 4;

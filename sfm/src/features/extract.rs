@@ -2,35 +2,59 @@
 //! scale space, DoG extrema, orientations, descriptors, strongest `max_features` kept. Keypoints
 //! are reported in pixels of the image as given (COLMAP's convention, see `feature_file.rs`).
 //!
+//! Adaptive detection: a weakly textured photo (a dark object on a plain background under
+//! studio light) gives a few hundred keypoints at the default contrast threshold, too few for
+//! its pairs to verify. When the DoG extrema of a photo fall short of `min_features` (per
+//! megapixel), the contrast threshold is halved, down to `min_contrast_threshold`, and the
+//! extrema searched again in the same scale space; [`extract_features_reporting`] says which
+//! threshold a photo got. Photos that reach the target at the first threshold are untouched.
+//!
 //! Work inside one image runs on rayon (blur rows, DoG rows, keypoints); callers extracting many
 //! images can also run [`extract_features`] from several rayon tasks.
 
+use fresco_core::config::{ConfigError, require};
 use std::path::Path;
 
 use fresco_core::photo::{GreyImage, PhotoError, load_photo};
 use rayon::prelude::*;
 
-use crate::descriptor::{quantise, root_sift, sift_descriptor};
-use crate::dog::{DetectorConfig, detect_extrema};
-use crate::feature_file::{Features, Keypoint};
-use crate::orientation::{OrientationConfig, dominant_orientations};
-use crate::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
+use crate::features::descriptor::{quantise, root_sift, sift_descriptor};
+use crate::features::dog::{DetectorConfig, detect_extrema};
+use crate::features::feature_file::{Features, Keypoint};
+use crate::features::orientation::{OrientationConfig, dominant_orientations};
+use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
 
 /// Everything that controls feature extraction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SiftConfig {
     /// Keep at most this many keypoints, the strongest by |DoG| response (COLMAP: 8192);
     /// 0 keeps all.
+    /// Default: `8192`.
     pub max_features: usize,
     /// All orientations 0 (for photos known to be upright): no rotation invariance, fewer
     /// ambiguities.
+    /// Default: `false`.
     pub upright: bool,
     /// Store RootSIFT descriptors instead of SIFT.
+    /// Default: `false`.
     pub root_sift: bool,
     /// Images whose longer side exceeds this are down-scaled first (COLMAP: 3200); 0 never.
+    /// Default: `3200`.
     pub max_image_size: usize,
+    /// Keypoint locations wanted per megapixel of the searched image: below it the contrast
+    /// threshold is lowered for that photo (see the module documentation). Default: `2000` (a
+    /// 640x480 photo: 614; the bundled sets have 1700-4000 per megapixel at the default
+    /// threshold, so they are untouched). At most `max_features`; 0 never lowers it.
+    pub min_features_per_megapixel: usize,
+    /// The lowest contrast threshold adaptive detection goes down to. Default: `0.0025` (the
+    /// default 0.02 halved three times): below it, on 8-bit photos, DoG extrema come from
+    /// quantisation and sensor noise rather than from the scene.
+    pub min_contrast_threshold: f32,
+    /// Default: `ScaleSpaceConfig::default()`.
     pub scale_space: ScaleSpaceConfig,
+    /// Default: `DetectorConfig::default()`.
     pub detector: DetectorConfig,
+    /// Default: `OrientationConfig::default()`.
     pub orientation: OrientationConfig,
 }
 
@@ -41,10 +65,37 @@ impl Default for SiftConfig {
             upright: false,
             root_sift: false,
             max_image_size: 3200,
+            min_features_per_megapixel: 2000,
+            min_contrast_threshold: 0.0025,
             scale_space: ScaleSpaceConfig::default(),
             detector: DetectorConfig::default(),
             orientation: OrientationConfig::default(),
         }
+    }
+}
+
+impl SiftConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.max_image_size == 0 || self.max_image_size >= MIN_IMAGE_SIDE,
+            "max_image_size",
+            self.max_image_size,
+            &format!("0 (never down-scale) or >= {MIN_IMAGE_SIDE}"),
+        )?;
+        require(
+            self.min_contrast_threshold.is_finite() && self.min_contrast_threshold >= 0.0,
+            "min_contrast_threshold",
+            self.min_contrast_threshold,
+            "finite and >= 0",
+        )?;
+        self.scale_space
+            .check()
+            .map_err(|e| e.within("scale_space"))?;
+        self.detector.check().map_err(|e| e.within("detector"))?;
+        self.orientation
+            .check()
+            .map_err(|e| e.within("orientation"))
     }
 }
 
@@ -54,6 +105,16 @@ pub const MIN_IMAGE_SIDE: usize = 16;
 /// Width in octave pixels of the column tiles keypoints are described in (see
 /// [`extract_features`]).
 const DESCRIBE_TILE: usize = 128;
+
+/// What [`extract_features_reporting`] did besides the features.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExtractionReport {
+    /// The contrast threshold the keypoints were detected at: the configured one, or lower
+    /// when the photo gave too few keypoints (adaptive detection).
+    pub contrast_threshold: f32,
+    /// Keypoint locations wanted for this photo's size (0: no target).
+    pub target: usize,
+}
 
 /// A keypoint with its float descriptor and the rank of its location by response (0 strongest).
 struct Detection {
@@ -66,7 +127,19 @@ struct Detection {
 /// assume [0, 1] as `fresco_core::photo` produces). Images with a side below
 /// [`MIN_IMAGE_SIDE`] give no features.
 pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
+    extract_features_reporting(image, config).0
+}
+
+/// [`extract_features`], and the contrast threshold the photo was detected at.
+pub fn extract_features_reporting(
+    image: &GreyImage,
+    config: &SiftConfig,
+) -> (Features, ExtractionReport) {
     let (w, h) = (image.width, image.height);
+    let mut report = ExtractionReport {
+        contrast_threshold: config.detector.contrast_threshold,
+        target: 0,
+    };
     let mut features = Features {
         width: w as u32,
         height: h as u32,
@@ -89,10 +162,20 @@ pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
         (image, 1.0, 1.0)
     };
     if work.width.min(work.height) < MIN_IMAGE_SIDE {
-        return features;
+        return (features, report);
     }
     let space = build_scale_space(work, &config.scale_space);
-    let extrema = detect_extrema(&space, &config.detector);
+    report.target = keypoint_target(work.width, work.height, config);
+    let mut detector = config.detector;
+    let mut extrema = detect_extrema(&space, &detector);
+    while extrema.len() < report.target
+        && detector.contrast_threshold > config.min_contrast_threshold
+    {
+        detector.contrast_threshold =
+            (0.5 * detector.contrast_threshold).max(config.min_contrast_threshold);
+        extrema = detect_extrema(&space, &detector);
+    }
+    report.contrast_threshold = detector.contrast_threshold;
     // Rank before describing: only the strongest locations need orientations and descriptors.
     // The sort is stable (ties keep the detection order), and so is the final one below.
     let mut ranked: Vec<usize> = (0..extrema.len()).collect();
@@ -156,7 +239,18 @@ pub fn extract_features(image: &GreyImage, config: &SiftConfig) -> Features {
         features.keypoints.push(d.keypoint);
         features.descriptors.push(quantise(&d.descriptor));
     }
-    features
+    (features, report)
+}
+
+/// Keypoint locations wanted in a `w` x `h` searched image: `min_features_per_megapixel`
+/// scaled by its area, at most `max_features` (when that is set).
+fn keypoint_target(w: usize, h: usize, config: &SiftConfig) -> usize {
+    let target = (config.min_features_per_megapixel as f64 * (w * h) as f64 / 1e6).round() as usize;
+    if config.max_features > 0 {
+        target.min(config.max_features)
+    } else {
+        target
+    }
 }
 
 /// Loads the photo at `path` (see `fresco_core::photo`) and extracts its features.

@@ -20,8 +20,10 @@
 //! `N = log(1 - confidence) / log(1 - w^s)` (Fischler and Bolles 1981), clamped to
 //! `[min_iterations, max_iterations]`.
 //!
-//! Sampling is deterministic: a SplitMix64 generator seeded with [`RansacConfig::seed`] drives
+//! Sampling is deterministic: `fresco_core::Rng` (SplitMix64) seeded with [`RansacConfig::seed`] drives
 //! a partial Fisher–Yates shuffle, so the same data and seed give the same result bits.
+
+use fresco_core::Rng;
 
 /// A model family RANSAC can estimate. See the module documentation for the contract.
 pub trait Estimator {
@@ -50,20 +52,20 @@ pub trait Estimator {
 /// RANSAC settings. Defaults follow COLMAP's two-view geometry defaults where they exist.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RansacConfig {
-    /// Inlier threshold on the error (not squared), in the estimator's units. Default 4.0 (pixels).
+    /// Inlier threshold on the error (not squared), in the estimator's units. Default: `4.0` (pixels).
     pub max_error: f64,
-    /// Probability that at least one all-inlier sample was drawn when the loop stops. Default 0.999.
+    /// Probability that at least one all-inlier sample was drawn when the loop stops. Default: `0.999`.
     pub confidence: f64,
     /// The smallest inlier ratio worth finding: bounds the iteration count at
-    /// `N(min_inlier_ratio)` when that is below `max_iterations`. Default 0.1.
+    /// `N(min_inlier_ratio)` when that is below `max_iterations`. Default: `0.1`.
     pub min_inlier_ratio: f64,
-    /// At least this many samples are drawn. Default 0.
+    /// At least this many samples are drawn. Default: `0`.
     pub min_iterations: usize,
-    /// At most this many samples are drawn. Default 10000.
+    /// At most this many samples are drawn. Default: `10000`.
     pub max_iterations: usize,
-    /// Local optimisation (LO-RANSAC) with `fit_nonminimal` on each new best model. Default true.
+    /// Local optimisation (LO-RANSAC) with `fit_nonminimal` on each new best model. Default: `true`.
     pub local_optimisation: bool,
-    /// Seed of the sampler. Default 0.
+    /// Seed of the sampler. Default: `0`.
     pub seed: u64,
 }
 
@@ -169,7 +171,7 @@ pub fn ransac<E: Estimator>(
         .max(config.min_iterations)
         .max(1);
 
-    let mut rng = SplitMix64::new(config.seed);
+    let mut rng = Rng::new(config.seed);
     let mut order: Vec<usize> = (0..n).collect();
     let mut sample: Vec<E::Datum> = Vec::with_capacity(s);
     let mut models: Vec<E::Model> = Vec::new();
@@ -298,27 +300,6 @@ fn local_optimisation<E: Estimator>(
     (model, cost, count)
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014): a tiny, fast, seedable generator, enough for sampling.
-#[derive(Clone, Debug)]
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn new(seed: u64) -> Self {
-        SplitMix64(seed)
-    }
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in `0..n` (`n > 0`), by Lemire's multiply-shift (bias below 2^-32 for our `n`).
-    fn below(&mut self, n: usize) -> usize {
-        ((self.next_u64() as u128 * n as u128) >> 64) as usize
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -364,8 +345,8 @@ mod tests {
 
     /// Points on y = 0.5 x + 1 with small noise, and uniform outliers.
     fn line_data(inliers: usize, outliers: usize, seed: u64) -> Vec<[f64; 2]> {
-        let mut rng = SplitMix64::new(seed);
-        let mut uniform = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut rng = Rng::new(seed);
+        let mut uniform = || rng.uniform();
         let mut data = Vec::new();
         for _ in 0..inliers {
             let x = uniform() * 100.0;

@@ -3,23 +3,26 @@
 //! (|D(x̂)| below `contrast_threshold / s`, OpenCV's scaling of Lowe's 0.03 to the number of
 //! intervals) and edge rejection by the Hessian ratio (eq. 4, r = 10).
 
-use fresco_core::photo::GreyImage;
+use fresco_core::config::{ConfigError, require};
 use rayon::prelude::*;
 
-use crate::scale_space::ScaleSpace;
+use crate::features::scale_space::ScaleSpace;
 
 /// Detector thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DetectorConfig {
-    /// Minimum |D(x̂)| times the number of intervals, for grey in [0, 1]. Default 0.02,
+    /// Minimum |D(x̂)| times the number of intervals, for grey in [0, 1]. Default: `0.02`,
     /// COLMAP's (its `peak_threshold` 0.02 / 3 intervals); OpenCV's `contrastThreshold` is
     /// 0.04, which keeps about half as many keypoints (see [`DetectorConfig::opencv`]).
     pub contrast_threshold: f32,
     /// Maximum ratio of principal curvatures `r` (Lowe: 10).
+    /// Default: `10.0`.
     pub edge_threshold: f32,
     /// Samples this close to an octave's border are not searched (the descriptor needs room).
+    /// Default: `5`.
     pub border: usize,
     /// Refinement steps before a wandering extremum is dropped (Lowe: 5).
+    /// Default: `5`.
     pub max_refine_steps: usize,
 }
 
@@ -31,6 +34,30 @@ impl Default for DetectorConfig {
             border: 5,
             max_refine_steps: 5,
         }
+    }
+}
+
+impl DetectorConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.contrast_threshold.is_finite() && self.contrast_threshold >= 0.0,
+            "contrast_threshold",
+            self.contrast_threshold,
+            "finite and >= 0",
+        )?;
+        require(
+            self.edge_threshold.is_finite() && self.edge_threshold > 1.0,
+            "edge_threshold",
+            self.edge_threshold,
+            "finite and > 1 (a ratio of principal curvatures)",
+        )?;
+        require(
+            self.max_refine_steps >= 1,
+            "max_refine_steps",
+            self.max_refine_steps,
+            ">= 1",
+        )
     }
 }
 
@@ -177,7 +204,7 @@ fn scan_chunk(
             columns.clear();
             candidates(&around, b, w, chunk.pre, &mut columns);
             for &x in &columns {
-                if let Some(e) = refine(g, chunk.octave, layer, x, y, s, space, chunk.config) {
+                if let Some(e) = chunk.refine(layer, x, y) {
                     out.push(((layer, y, x), e));
                 }
             }
@@ -265,80 +292,76 @@ fn is_extremum(around: &Around, x: usize, v: f32) -> bool {
     }
 }
 
-/// Lowe's eq. 2-3: fits a 3-D quadratic at the sample, moves to the neighbour sample while the
-/// offset exceeds 0.5 in any dimension, then applies the contrast and edge tests.
-#[allow(clippy::too_many_arguments)]
-fn refine(
-    gaussians: &[GreyImage],
-    octave: usize,
-    layer: usize,
-    x: usize,
-    y: usize,
-    s: usize,
-    space: &ScaleSpace,
-    config: &DetectorConfig,
-) -> Option<Extremum> {
-    let (w, h) = (gaussians[0].width as isize, gaussians[0].height as isize);
-    let b = config.border.max(1) as isize;
-    let (mut xi, mut yi, mut li) = (x as isize, y as isize, layer as isize);
-    let mut step = 0;
-    loop {
-        // DoG layer l is gaussian[l + 1] - gaussian[l], evaluated where the fit needs it.
-        let at = |l: isize, yy: isize, xx: isize| {
-            let i = (yy * w + xx) as usize;
-            gaussians[l as usize + 1].data[i] - gaussians[l as usize].data[i]
-        };
-        let c = at(li, yi, xi);
-        let g = [
-            0.5 * (at(li, yi, xi + 1) - at(li, yi, xi - 1)),
-            0.5 * (at(li, yi + 1, xi) - at(li, yi - 1, xi)),
-            0.5 * (at(li + 1, yi, xi) - at(li - 1, yi, xi)),
-        ];
-        let dxx = at(li, yi, xi + 1) + at(li, yi, xi - 1) - 2.0 * c;
-        let dyy = at(li, yi + 1, xi) + at(li, yi - 1, xi) - 2.0 * c;
-        let dss = at(li + 1, yi, xi) + at(li - 1, yi, xi) - 2.0 * c;
-        let dxy = 0.25
-            * (at(li, yi + 1, xi + 1) - at(li, yi + 1, xi - 1) - at(li, yi - 1, xi + 1)
-                + at(li, yi - 1, xi - 1));
-        let dxs = 0.25
-            * (at(li + 1, yi, xi + 1) - at(li + 1, yi, xi - 1) - at(li - 1, yi, xi + 1)
-                + at(li - 1, yi, xi - 1));
-        let dys = 0.25
-            * (at(li + 1, yi + 1, xi) - at(li + 1, yi - 1, xi) - at(li - 1, yi + 1, xi)
-                + at(li - 1, yi - 1, xi));
-        let hess = [[dxx, dxy, dxs], [dxy, dyy, dys], [dxs, dys, dss]];
-        // x̂ = -H^-1 g (eq. 3).
-        let offset = solve3(&hess, &g)?.map(|v| -v);
-        if offset.iter().all(|v| v.abs() < 0.5) {
-            let contrast = c + 0.5 * (g[0] * offset[0] + g[1] * offset[1] + g[2] * offset[2]);
-            if contrast.abs() * (s as f32) < config.contrast_threshold {
+impl Chunk<'_> {
+    /// Lowe's eq. 2-3: fits a 3-D quadratic at sample (`x`, `y`) of DoG layer `layer` of the
+    /// chunk's octave, moves to the neighbour sample while the offset exceeds 0.5 in any
+    /// dimension, then applies the contrast and edge tests.
+    fn refine(&self, layer: usize, x: usize, y: usize) -> Option<Extremum> {
+        let (space, config, octave) = (self.space, self.config, self.octave);
+        let gaussians = &space.octaves[octave].gaussians;
+        let s = space.config.intervals;
+        let (w, h) = (gaussians[0].width as isize, gaussians[0].height as isize);
+        let b = config.border.max(1) as isize;
+        let (mut xi, mut yi, mut li) = (x as isize, y as isize, layer as isize);
+        let mut step = 0;
+        loop {
+            // DoG layer l is gaussian[l + 1] - gaussian[l], evaluated where the fit needs it.
+            let at = |l: isize, yy: isize, xx: isize| {
+                let i = (yy * w + xx) as usize;
+                gaussians[l as usize + 1].data[i] - gaussians[l as usize].data[i]
+            };
+            let c = at(li, yi, xi);
+            let g = [
+                0.5 * (at(li, yi, xi + 1) - at(li, yi, xi - 1)),
+                0.5 * (at(li, yi + 1, xi) - at(li, yi - 1, xi)),
+                0.5 * (at(li + 1, yi, xi) - at(li - 1, yi, xi)),
+            ];
+            let dxx = at(li, yi, xi + 1) + at(li, yi, xi - 1) - 2.0 * c;
+            let dyy = at(li, yi + 1, xi) + at(li, yi - 1, xi) - 2.0 * c;
+            let dss = at(li + 1, yi, xi) + at(li - 1, yi, xi) - 2.0 * c;
+            let dxy = 0.25
+                * (at(li, yi + 1, xi + 1) - at(li, yi + 1, xi - 1) - at(li, yi - 1, xi + 1)
+                    + at(li, yi - 1, xi - 1));
+            let dxs = 0.25
+                * (at(li + 1, yi, xi + 1) - at(li + 1, yi, xi - 1) - at(li - 1, yi, xi + 1)
+                    + at(li - 1, yi, xi - 1));
+            let dys = 0.25
+                * (at(li + 1, yi + 1, xi) - at(li + 1, yi - 1, xi) - at(li - 1, yi + 1, xi)
+                    + at(li - 1, yi - 1, xi));
+            let hess = [[dxx, dxy, dxs], [dxy, dyy, dys], [dxs, dys, dss]];
+            // x̂ = -H^-1 g (eq. 3).
+            let offset = solve3(&hess, &g)?.map(|v| -v);
+            if offset.iter().all(|v| v.abs() < 0.5) {
+                let contrast = c + 0.5 * (g[0] * offset[0] + g[1] * offset[1] + g[2] * offset[2]);
+                if contrast.abs() * (s as f32) < config.contrast_threshold {
+                    return None;
+                }
+                // Edge test on the 2x2 spatial Hessian (eq. 4).
+                let (tr, det) = (dxx + dyy, dxx * dyy - dxy * dxy);
+                let r = config.edge_threshold;
+                if det <= 0.0 || tr * tr * r >= (r + 1.0) * (r + 1.0) * det {
+                    return None;
+                }
+                let sigma = space.config.sigma;
+                return Some(Extremum {
+                    octave,
+                    layer: li as usize,
+                    x: xi as f32 + offset[0],
+                    y: yi as f32 + offset[1],
+                    sigma_octave: sigma * 2f32.powf((li as f32 + offset[2]) / s as f32),
+                    response: contrast.abs(),
+                });
+            }
+            step += 1;
+            if step >= config.max_refine_steps || offset.iter().any(|v| v.abs() > 1e6) {
                 return None;
             }
-            // Edge test on the 2x2 spatial Hessian (eq. 4).
-            let (tr, det) = (dxx + dyy, dxx * dyy - dxy * dxy);
-            let r = config.edge_threshold;
-            if det <= 0.0 || tr * tr * r >= (r + 1.0) * (r + 1.0) * det {
+            xi += offset[0].round() as isize;
+            yi += offset[1].round() as isize;
+            li += offset[2].round() as isize;
+            if li < 1 || li > s as isize || xi < b || xi >= w - b || yi < b || yi >= h - b {
                 return None;
             }
-            let sigma = space.config.sigma;
-            return Some(Extremum {
-                octave,
-                layer: li as usize,
-                x: xi as f32 + offset[0],
-                y: yi as f32 + offset[1],
-                sigma_octave: sigma * 2f32.powf((li as f32 + offset[2]) / s as f32),
-                response: contrast.abs(),
-            });
-        }
-        step += 1;
-        if step >= config.max_refine_steps || offset.iter().any(|v| v.abs() > 1e6) {
-            return None;
-        }
-        xi += offset[0].round() as isize;
-        yi += offset[1].round() as isize;
-        li += offset[2].round() as isize;
-        if li < 1 || li > s as isize || xi < b || xi >= w - b || yi < b || yi >= h - b {
-            return None;
         }
     }
 }
@@ -368,7 +391,8 @@ fn solve3(a: &[[f32; 3]; 3], b: &[f32; 3]) -> Option<[f32; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scale_space::{ScaleSpaceConfig, build_scale_space};
+    use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space};
+    use fresco_core::photo::GreyImage;
 
     /// A Gaussian blob of standard deviation `sigma` centred at (cx, cy) (pixel-centre indices).
     fn blob(w: usize, h: usize, cx: f32, cy: f32, sigma: f32) -> GreyImage {

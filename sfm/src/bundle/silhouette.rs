@@ -20,6 +20,7 @@
 //!   a contour, at the nearest contour position, so the bundle adjustment pulls the cameras
 //!   towards silhouette consistency.
 
+use fresco_core::config::{ConfigError, require};
 use std::collections::{BTreeMap, HashMap};
 
 use fresco_core::{Point3D, Reconstruction, TrackElement};
@@ -31,20 +32,20 @@ use serde::Serialize;
 /// Silhouette settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct SilhouetteConfig {
-    /// Mask value separating object (above) from background. Default 127.
+    /// Mask value separating object (above) from background. Default: `127`.
     pub level: u8,
-    /// Douglas–Peucker tolerance, pixels. Default 1.5.
+    /// Douglas–Peucker tolerance, pixels. Default: `1.5`.
     pub simplify_px: f64,
     /// Samples along each cone line between the nearest and farthest plausible depth.
-    /// Default 400.
+    /// Default: `400`.
     pub ray_samples: usize,
     /// Longest accepted visual-hull interval along a cone line, as a fraction of the depth.
-    /// Default 0.02.
+    /// Default: `0.02`.
     pub max_interval: f64,
     /// Most distance from a lifted point's projection to a contour of another view for that
-    /// view to observe it, pixels. Default 2.
+    /// view to observe it, pixels. Default: `2.0`.
     pub max_contour_px: f64,
-    /// Fewest other views whose masks must constrain a cone line. Default 2.
+    /// Fewest other views whose masks must constrain a cone line. Default: `2`.
     pub min_constraining_views: usize,
 }
 
@@ -58,6 +59,42 @@ impl Default for SilhouetteConfig {
             max_contour_px: 2.0,
             min_constraining_views: 2,
         }
+    }
+}
+
+impl SilhouetteConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.simplify_px.is_finite() && self.simplify_px >= 0.0,
+            "simplify_px",
+            self.simplify_px,
+            "finite and >= 0",
+        )?;
+        require(
+            self.ray_samples >= 2,
+            "ray_samples",
+            self.ray_samples,
+            ">= 2",
+        )?;
+        require(
+            self.max_interval > 0.0 && self.max_interval <= 1.0,
+            "max_interval",
+            self.max_interval,
+            "in (0, 1]",
+        )?;
+        require(
+            self.max_contour_px.is_finite() && self.max_contour_px > 0.0,
+            "max_contour_px",
+            self.max_contour_px,
+            "finite and > 0",
+        )?;
+        require(
+            self.min_constraining_views >= 1,
+            "min_constraining_views",
+            self.min_constraining_views,
+            ">= 1",
+        )
     }
 }
 

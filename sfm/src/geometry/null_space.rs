@@ -93,14 +93,14 @@ pub fn null_space_of_rank<const R: usize, const C: usize, const K: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::Lcg;
+    use fresco_core::Rng;
 
     /// A random R x C matrix of rank C - K: R rows in the orthogonal complement of K random
     /// vectors.
     fn rank_deficient<const R: usize, const C: usize, const K: usize>(
         seed: u64,
     ) -> (SMatrix<f64, R, C>, [SVector<f64, C>; K]) {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         let null: [SVector<f64, C>; K] =
             std::array::from_fn(|_| SVector::from_fn(|_, _| rng.range(-1.0, 1.0)));
         let mut a = SMatrix::<f64, R, C>::from_fn(|_, _| rng.range(-1.0, 1.0));

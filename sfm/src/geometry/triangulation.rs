@@ -5,6 +5,7 @@
 //! a minimal two-view search picks the hypothesis most views agree with first, so one
 //! mismatched observation in a track does not spoil the point.
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::{CamFromWorld, Camera};
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Vector2, Vector3};
 use serde::Serialize;
@@ -12,12 +13,12 @@ use serde::Serialize;
 /// Triangulation settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct TriangulationConfig {
-    /// Smallest angle between two viewing rays of the point, degrees. Default 1.5 (COLMAP's
+    /// Smallest angle between two viewing rays of the point, degrees. Default: `1.5` (COLMAP's
     /// default): narrower rays leave the depth poorly determined.
     pub min_angle_deg: f64,
-    /// Largest reprojection error of an accepted observation, pixels. Default 4 (COLMAP's).
+    /// Largest reprojection error of an accepted observation, pixels. Default: `4.0` (COLMAP's).
     pub max_error_px: f64,
-    /// Refine the linear estimate by minimising the reprojection error. Default true.
+    /// Refine the linear estimate by minimising the reprojection error. Default: `true`.
     pub refine: bool,
 }
 
@@ -28,6 +29,24 @@ impl Default for TriangulationConfig {
             max_error_px: 4.0,
             refine: true,
         }
+    }
+}
+
+impl TriangulationConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            (0.0..90.0).contains(&self.min_angle_deg),
+            "min_angle_deg",
+            self.min_angle_deg,
+            "in [0, 90)",
+        )?;
+        require(
+            self.max_error_px.is_finite() && self.max_error_px > 0.0,
+            "max_error_px",
+            self.max_error_px,
+            "finite and > 0",
+        )
     }
 }
 
@@ -295,8 +314,9 @@ pub fn triangulate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synthetic::{SplitMix, look_at_origin};
+    use crate::synthetic::look_at_origin;
     use fresco_core::CameraModel;
+    use fresco_core::Rng;
 
     fn camera() -> Camera {
         Camera {
@@ -351,7 +371,7 @@ mod tests {
     fn refinement_minimises_pixel_error() {
         let cam = camera();
         let ps = poses(5, 8.0);
-        let mut rng = SplitMix::new(4);
+        let mut rng = Rng::new(4);
         let mut wins = 0;
         for _ in 0..50 {
             let x = Vector3::new(

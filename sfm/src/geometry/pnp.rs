@@ -6,33 +6,35 @@
 //! when the camera is not calibrated yet. Without a trusted focal length, P3P runs over a
 //! range of focal lengths around the prior and keeps the one with the most inliers.
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::{CamFromWorld, Camera, Rigid3};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix4, Owned, UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
-use crate::ransac::{Estimator, RansacConfig, ransac};
+use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
 
 /// PnP settings.
 #[derive(Clone, Debug, Serialize)]
 pub struct PnpConfig {
-    /// RANSAC inlier threshold on the reprojection error, pixels. Default 12 (COLMAP's
+    /// RANSAC inlier threshold on the reprojection error, pixels. Default: `12.0` (COLMAP's
     /// absolute-pose default: the pose before refinement, and the points before bundle
     /// adjustment, are rough).
     pub max_error_px: f64,
-    /// Fewest inliers for a pose to be accepted. Default 30.
+    /// Fewest inliers for a pose to be accepted. Default: `30`.
     pub min_inliers: usize,
-    /// Smallest inlier fraction for a pose to be accepted. Default 0.25.
+    /// Smallest inlier fraction for a pose to be accepted. Default: `0.25`.
     pub min_inlier_ratio: f64,
-    /// RANSAC confidence. Default 0.9999.
+    /// RANSAC confidence. Default: `0.9999`.
     pub confidence: f64,
-    /// Most RANSAC samples (per focal hypothesis). Default 10000.
+    /// Most RANSAC samples (per focal hypothesis). Default: `10000`.
     pub max_iterations: usize,
-    /// Search the focal length (the camera's focal is only a prior). Default false.
+    /// Search the focal length (the camera's focal is only a prior). Default: `false`.
     pub estimate_focal: bool,
     /// Refine the focal length (and the radial distortion, if the model has it) with the pose.
-    /// Default false.
+    /// Default: `false`.
     pub refine_intrinsics: bool,
+    /// Default: `0`.
     pub seed: u64,
 }
 
@@ -48,6 +50,42 @@ impl Default for PnpConfig {
             refine_intrinsics: false,
             seed: 0,
         }
+    }
+}
+
+impl PnpConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.max_error_px.is_finite() && self.max_error_px > 0.0,
+            "max_error_px",
+            self.max_error_px,
+            "finite and > 0",
+        )?;
+        require(
+            self.min_inliers >= 4,
+            "min_inliers",
+            self.min_inliers,
+            ">= 4 (P3P's sample and one check)",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.min_inlier_ratio),
+            "min_inlier_ratio",
+            self.min_inlier_ratio,
+            "in [0, 1]",
+        )?;
+        require(
+            self.confidence > 0.0 && self.confidence < 1.0,
+            "confidence",
+            self.confidence,
+            "in (0, 1)",
+        )?;
+        require(
+            self.max_iterations >= 1,
+            "max_iterations",
+            self.max_iterations,
+            ">= 1",
+        )
     }
 }
 
@@ -542,8 +580,9 @@ fn inliers_of(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synthetic::{SplitMix, look_at_origin};
+    use crate::synthetic::look_at_origin;
     use fresco_core::CameraModel;
+    use fresco_core::Rng;
 
     fn camera(f: f64, k: f64) -> Camera {
         Camera {
@@ -564,7 +603,7 @@ mod tests {
         outliers: f64,
         seed: u64,
     ) -> (Vec<Vector2<f64>>, Vec<Vector3<f64>>, CamFromWorld) {
-        let mut rng = SplitMix::new(seed);
+        let mut rng = Rng::new(seed);
         let pose = look_at_origin(Vector3::new(3.0, -2.5, 1.2));
         let mut px = Vec::new();
         let mut wd = Vec::new();
@@ -597,7 +636,7 @@ mod tests {
     /// true pose.
     #[test]
     fn p3p_recovers_true_pose_among_solutions() {
-        let mut rng = SplitMix::new(9);
+        let mut rng = Rng::new(9);
         for _ in 0..200 {
             let pose = look_at_origin(
                 Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize() * 4.0,

@@ -21,33 +21,34 @@
 //! - degenerate: fewer than `min_inliers` (15) inliers for every model.
 
 use fresco_core::Rigid3;
+use fresco_core::config::{ConfigError, require};
 use nalgebra::{Matrix3, Point2, UnitQuaternion, Vector3};
 use serde::Serialize;
 
-use crate::essential::{
+use crate::focal_prior::{FocalPrior, FocalSource};
+use crate::geometry::essential::{
     EssentialEstimator, pose_from_essential, project_to_essential, refine_relative_pose_robust,
 };
-use crate::focal_prior::{FocalPrior, FocalSource};
-use crate::fundamental::FundamentalEstimator;
-use crate::homography::HomographyEstimator;
-use crate::ransac::{RansacConfig, RansacReport, ransac};
-use crate::two_view::{Correspondence, PairKind, TwoViewGeometry};
+use crate::geometry::fundamental::FundamentalEstimator;
+use crate::geometry::homography::HomographyEstimator;
+use crate::geometry::ransac::{RansacConfig, RansacReport, ransac};
+use crate::geometry::two_view::{Correspondence, PairKind, TwoViewGeometry};
 
 /// Verification settings (defaults: COLMAP's `TwoViewGeometryOptions`).
 #[derive(Clone, Debug, Serialize)]
 pub struct VerificationConfig {
     /// RANSAC threshold of every model, pixels (Sampson error for F and E, transfer error for
-    /// H). Default 4.
+    /// H). Default: `4.0`.
     pub max_error_px: f64,
-    /// RANSAC confidence. Default 0.999.
+    /// RANSAC confidence. Default: `0.999`.
     pub confidence: f64,
-    /// Most RANSAC samples per model. Default 10000.
+    /// Most RANSAC samples per model. Default: `10000`.
     pub max_iterations: usize,
-    /// Fewest inliers of a verified pair. Default 15.
+    /// Fewest inliers of a verified pair. Default: `15`.
     pub min_inliers: usize,
-    /// E inliers / F inliers at least this: the focal priors are right. Default 0.95.
+    /// E inliers / F inliers at least this: the focal priors are right. Default: `0.95`.
     pub min_e_f_inlier_ratio: f64,
-    /// H inliers / (E or F) inliers above this: the homography explains the pair. Default 0.8.
+    /// H inliers / (E or F) inliers above this: the homography explains the pair. Default: `0.8`.
     pub max_h_inlier_ratio: f64,
     /// When both focal priors come from calibration files (a measured K, not an EXIF guess
     /// that crops or digital zoom can falsify), a pair whose matches E does not explain is
@@ -56,12 +57,13 @@ pub struct VerificationConfig {
     /// in the ground truth, with F 15-26 inliers of 29-50 matches and E 2-5 fewer: the chance
     /// inliers a 7-point sample gains over a 5-point one; the other three, 46 degrees apart,
     /// had 13-15 E inliers).
-    /// Default true; false gives COLMAP's behaviour.
+    /// Default: `true`; false gives COLMAP's behaviour.
     pub trust_calibration_files: bool,
     /// Smallest / largest singular value of `K2⁻¹ H K1` above this: a pure rotation (the
     /// baseline is below about 1% of the plane's distance, nothing can be triangulated).
-    /// Default 0.99.
+    /// Default: `0.99`.
     pub panoramic_singular_ratio: f64,
+    /// Default: `0`.
     pub seed: u64,
 }
 
@@ -78,6 +80,44 @@ impl Default for VerificationConfig {
             trust_calibration_files: true,
             seed: 0,
         }
+    }
+}
+
+impl VerificationConfig {
+    /// Each field within its meaningful range, else the [`ConfigError`] naming it.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.max_error_px.is_finite() && self.max_error_px > 0.0,
+            "max_error_px",
+            self.max_error_px,
+            "finite and > 0",
+        )?;
+        require(
+            self.confidence > 0.0 && self.confidence < 1.0,
+            "confidence",
+            self.confidence,
+            "in (0, 1)",
+        )?;
+        require(
+            self.max_iterations >= 1,
+            "max_iterations",
+            self.max_iterations,
+            ">= 1",
+        )?;
+        require(
+            self.min_inliers >= 7,
+            "min_inliers",
+            self.min_inliers,
+            ">= 7 (the seven-point fundamental matrix's sample)",
+        )?;
+        for (name, value) in [
+            ("min_e_f_inlier_ratio", self.min_e_f_inlier_ratio),
+            ("max_h_inlier_ratio", self.max_h_inlier_ratio),
+            ("panoramic_singular_ratio", self.panoramic_singular_ratio),
+        ] {
+            require((0.0..=1.0).contains(&value), name, value, "in [0, 1]")?;
+        }
+        Ok(())
     }
 }
 
@@ -353,7 +393,8 @@ pub fn rotation_of_homography(hn: &Matrix3<f64>, min_ratio: f64) -> Option<UnitQ
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fundamental::tests::{Lcg, Scene};
+    use crate::geometry::fundamental::tests::Scene;
+    use fresco_core::Rng;
 
     fn prior(source: FocalSource) -> FocalPrior {
         FocalPrior {
@@ -372,7 +413,7 @@ mod tests {
         let data = scene.pixels(0.5, 1);
         let mut x1: Vec<_> = data.iter().map(|c| c.x1).collect();
         let mut x2: Vec<_> = data.iter().map(|c| c.x2).collect();
-        let mut rng = Lcg(3);
+        let mut rng = Rng::new(3);
         for _ in 0..outliers {
             x1.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
             x2.push(Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)));
@@ -477,8 +518,8 @@ mod tests {
 
     #[test]
     fn random_matches_are_degenerate() {
-        let mut rng = Lcg(8);
-        let pts = |rng: &mut Lcg| -> Vec<Point2<f64>> {
+        let mut rng = Rng::new(8);
+        let pts = |rng: &mut Rng| -> Vec<Point2<f64>> {
             (0..100)
                 .map(|_| Point2::new(rng.range(0.0, 640.0), rng.range(0.0, 480.0)))
                 .collect()
