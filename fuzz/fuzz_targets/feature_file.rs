@@ -3,7 +3,7 @@
 #![no_main]
 use std::path::Path;
 
-use fresco_sfm::feature_file::{decode_features, encode_features};
+use fresco_sfm::features::feature_file::{decode_features, encode_features};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

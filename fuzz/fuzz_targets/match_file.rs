@@ -4,7 +4,7 @@
 #![no_main]
 use std::path::Path;
 
-use fresco_sfm::match_file::{decode_matches, encode_matches};
+use fresco_sfm::matching::match_file::{decode_matches, encode_matches};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use fresco_sfm::match_file::decode_matches;
+use fresco_sfm::matching::match_file::decode_matches;
 use fresco_sfm::workspace::read_images;
 
 fn input(name: &str) -> PathBuf {
