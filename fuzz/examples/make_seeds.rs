@@ -329,7 +329,13 @@ fn photo() {
 }
 
 fn glb() {
-    let out = seeds("glb");
+    for target in ["glb", "core_glb"] {
+        glb_into(&seeds(target));
+    }
+}
+
+/// GLBs written by fresco's writer: textured, plain, vertex-coloured.
+fn glb_into(out: &Path) {
     fs::write(
         out.join("textured.glb"),
         fresco_core::gltf::encode_glb(&tetra(true), &[tiny_image()]).unwrap(),
@@ -350,9 +356,9 @@ fn glb() {
 }
 
 fn sfm_files() {
-    use fresco_sfm::feature_file::{Features, Keypoint, encode_features};
-    use fresco_sfm::match_file::encode_matches;
-    use fresco_sfm::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
+    use fresco_sfm::features::feature_file::{Features, Keypoint, encode_features};
+    use fresco_sfm::matching::match_file::encode_matches;
+    use fresco_sfm::geometry::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
     let out = seeds("feature_file");
     let mut f = Features {
         width: 640,
@@ -418,7 +424,7 @@ fn sfm_files() {
       "width": 1600,
       "height": 1200,
       "num_keypoints": 3,
-      "prior": { "focal_x": 1920.0, "focal_y": 1920.0, "cx": 800.0, "cy": 600.0, "source": "Exif35mm" },
+      "prior": { "focal_x": 1920.0, "focal_y": 1920.0, "cx": 800.0, "cy": 600.0, "source": "exif35mm" },
       "exif_orientation": 1,
       "camera_make": "Canon",
       "camera_model": "EOS 5D"
@@ -431,6 +437,67 @@ fn sfm_files() {
         join(&[b"{}", b"1000, 0, 800\n0, 1000, 600\n0, 0, 1\n"]),
     )
     .unwrap();
+}
+
+/// Depth, normal and cost maps of a 5x4 view as the dense stage writes them, and a `.vis`.
+fn dense(tmp: &Path) {
+    use fresco_surface::dense::DepthMap;
+    use fresco_surface::dense::depth_map_file::write_depth_map;
+    let out = seeds("dense_maps");
+    let (w, h) = (5, 4);
+    let map = DepthMap {
+        width: w,
+        height: h,
+        depth: (0..w * h)
+            .map(|i| {
+                if i % 7 == 0 {
+                    0.0
+                } else {
+                    2.0 + i as f32 * 0.01
+                }
+            })
+            .collect(),
+        normal: vec![[0.0, 0.0, -1.0]; w * h],
+        cost: (0..w * h).map(|i| (i % 5) as f32 * 0.1).collect(),
+    };
+    let (d, n, c) = (tmp.join("d.bin"), tmp.join("n.bin"), tmp.join("c.bin"));
+    write_depth_map(&d, &n, &c, &map).unwrap();
+    let mut vis = 3u64.to_le_bytes().to_vec();
+    for list in [&[0u32, 1][..], &[2], &[0, 1, 2]] {
+        vis.extend_from_slice(&(list.len() as u32).to_le_bytes());
+        for v in list {
+            vis.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let (d, n, c) = (
+        fs::read(d).unwrap(),
+        fs::read(n).unwrap(),
+        fs::read(c).unwrap(),
+    );
+    fs::write(out.join("maps.bin"), join(&[&d, &n, &c, &vis])).unwrap();
+    fs::write(out.join("no_cost.bin"), join(&[&d, &n])).unwrap();
+}
+
+/// The bundled gears scene cut to its first 4 sprites, with a small pattern image.
+fn sprites() {
+    let out = seeds("sprite_scene");
+    let text = fs::read_to_string(repo("datasets/sprites/gears.json")).unwrap();
+    let mut scene: serde_json::Value = serde_json::from_str(&text).unwrap();
+    scene["patterns"] = serde_json::json!(["p.png"]);
+    let sprites = scene["sprites"].as_array_mut().unwrap();
+    sprites.truncate(4);
+    for s in sprites.iter_mut() {
+        s["pattern"] = 0.into();
+    }
+    sprites[1]["blend"] = "add".into();
+    sprites[2]["cycle"] = serde_json::json!([0, 0]);
+    sprites[2]["cycle_fps"] = 2.0.into();
+    let img = image::RgbaImage::from_fn(4, 4, |x, y| {
+        image::Rgba([x as u8 * 60, y as u8 * 60, 9, 200])
+    });
+    let p = png(image::DynamicImage::ImageRgba8(img));
+    let json = serde_json::to_string_pretty(&scene).unwrap();
+    fs::write(out.join("gears4.bin"), join(&[json.as_bytes(), &p])).unwrap();
 }
 
 fn tempdir(name: &str) -> PathBuf {
@@ -471,12 +538,8 @@ fn pst() {
         .take(2)
         .map(|&id| fs::read(pst.evicted_path(id)).unwrap())
         .collect();
-    // The target stores evicted files under nodes 0 and 1: renumber in the manifest text.
-    let mut text = String::from_utf8(manifest).unwrap();
-    if let Some(&first) = report.evicted.first() {
-        text = text.replace(&format!("\"id\": {first},"), "\"id\": 0,");
-    }
-    let mut parts: Vec<&[u8]> = vec![text.as_bytes(), &samples];
+    // The target stores these as the files of the first two evicted nodes of the manifest.
+    let mut parts: Vec<&[u8]> = vec![&manifest, &samples];
     parts.extend(evicted.iter().map(|e| e.as_slice()));
     fs::write(out.join("evicted.bin"), join(&parts)).unwrap();
 
@@ -525,6 +588,8 @@ fn main() {
     glb();
     sfm_files();
     pst();
+    dense(&tmp);
+    sprites();
     let _ = fs::remove_dir_all(&tmp);
     println!("seeds written under {}/seeds", ROOT);
 }
