@@ -54,6 +54,9 @@ pub struct DenseArgs {
     /// Do not write the false-colour PNG of each depth map.
     #[arg(long)]
     pub no_depth_pngs: bool,
+    /// Skip the second PatchMatch pass (geometric consistency): faster, less complete.
+    #[arg(long)]
+    pub no_geometric: bool,
 }
 
 pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -106,6 +109,7 @@ pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
         exclude_images: args.exclude.clone(),
         seed: args.seed,
         depth_pngs: !args.no_depth_pngs,
+        geometric: !args.no_geometric,
         ..DenseConfig::default()
     };
     config.view_selection.max_sources = args.max_sources;
