@@ -59,19 +59,20 @@ fn a_mesh_from_inside_out_normals_is_turned_to_face_its_cameras() {
     );
 
     // With them, it faces them.
-    let (mesh, report) =
-        mesh_from_points(&cloud.points, Some(&inward), &config(views.clone()), &NoProgress)
-            .unwrap();
+    let (mesh, report) = mesh_from_points(
+        &cloud.points,
+        Some(&inward),
+        &config(views.clone()),
+        &NoProgress,
+    )
+    .unwrap();
     let orientation = report.orientation.unwrap();
     assert_eq!(orientation.flipped_components, 1);
     let after = back_face_pixels(&mesh, &views).unwrap();
     assert_eq!(after, orientation.after);
     assert!(after.front_pixels > 20_000, "{after:?}");
     // Only pixels at grazing angles along the silhouette may see a back face.
-    assert!(
-        after.back_pixels * 1000 < after.front_pixels,
-        "{after:?}"
-    );
+    assert!(after.back_pixels * 1000 < after.front_pixels, "{after:?}");
 }
 
 #[test]

@@ -642,7 +642,9 @@ impl<'a> Solver<'a> {
 
     /// The cost of hypothesis (`depth`, `normal`) at (`x`, `y`) against every source
     /// (photometric, plus the geometric term in the geometric pass); `MAX_COST` beyond the
-    /// sources.
+    /// sources and, when `weights` are given, for the sources of weight 0 (which a weighted
+    /// mean ignores: not evaluating them saves most of the refinement's work once ACMH's
+    /// selection has settled on a few views).
     fn source_costs(
         &self,
         x: usize,
@@ -650,6 +652,7 @@ impl<'a> Solver<'a> {
         depth: f32,
         normal: &[f32; 3],
         win: &Window,
+        weights: Option<&[f32; MAX_SOURCES]>,
     ) -> [f32; MAX_SOURCES] {
         let mut costs = [MAX_COST; MAX_SOURCES];
         let k = &self.problem.k;
@@ -668,7 +671,15 @@ impl<'a> Solver<'a> {
         ];
         let point = [depth * ray[0], depth * ray[1], depth];
         let (weight, max_px) = (self.cfg.geometric_weight, self.cfg.geometric_max_px);
-        for ((c, src), check) in costs.iter_mut().zip(&self.sources).zip(&self.checks) {
+        for (j, ((c, src), check)) in costs
+            .iter_mut()
+            .zip(&self.sources)
+            .zip(&self.checks)
+            .enumerate()
+        {
+            if weights.is_some_and(|w| w[j] == 0.0) {
+                continue;
+            }
             let mut h = src.a;
             for i in 0..3 {
                 for j in 0..3 {
@@ -689,7 +700,7 @@ impl<'a> Solver<'a> {
     /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`): the mean of the
     /// `top_k` best sources.
     fn cost(&self, x: usize, y: usize, depth: f32, normal: &[f32; 3], win: &Window) -> f32 {
-        let mut costs = self.source_costs(x, y, depth, normal, win);
+        let mut costs = self.source_costs(x, y, depth, normal, win, None);
         aggregate(&mut costs[..self.sources.len()], self.cfg.top_k)
     }
 
@@ -836,7 +847,10 @@ impl<'a> Solver<'a> {
                         } else {
                             let mut rng = Rng::for_item(self.seed, k as u64);
                             let ray = self.problem.k.ray(x as f32, y as f32);
-                            (self.random_depth(&mut rng), self.random_normal(&mut rng, &ray))
+                            (
+                                self.random_depth(&mut rng),
+                                self.random_normal(&mut rng, &ray),
+                            )
                         };
                         let cost = self.cost(x, y, depth, &normal, &win);
                         *cell = Hyp {
@@ -974,7 +988,7 @@ impl<'a> Solver<'a> {
                     }
                     let mut matrix = [[MAX_COST; MAX_SOURCES]; 9];
                     for (row, (depth, normal)) in matrix.iter_mut().zip(&candidates[..count]) {
-                        *row = self.source_costs(x, y, *depth, normal, &win);
+                        *row = self.source_costs(x, y, *depth, normal, &win, None);
                     }
                     let weights = if self.cfg.adaptive_views {
                         self.view_weights(&matrix[..count], step)
@@ -1027,7 +1041,14 @@ impl<'a> Solver<'a> {
                         if depth <= 0.0 || (depth == best.depth && normal == best.normal) {
                             continue;
                         }
-                        let cost = combine(self.source_costs(x, y, depth, &normal, &win));
+                        let cost = combine(self.source_costs(
+                            x,
+                            y,
+                            depth,
+                            &normal,
+                            &win,
+                            weights.as_ref(),
+                        ));
                         if cost < best.cost {
                             best = Hyp {
                                 depth,
@@ -1087,12 +1108,15 @@ const MIN_SCALE_SIDE: usize = 96;
 fn halve(image: &GreyImage) -> GreyImage {
     let (w, h) = (image.width / 2, image.height / 2);
     let mut out = GreyImage::new(w, h);
-    out.data.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        let (r0, r1) = (image.row(2 * y), image.row(2 * y + 1));
-        for (x, v) in row.iter_mut().enumerate() {
-            *v = 0.25 * (r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1]);
-        }
-    });
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let (r0, r1) = (image.row(2 * y), image.row(2 * y + 1));
+            for (x, v) in row.iter_mut().enumerate() {
+                *v = 0.25 * (r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1]);
+            }
+        });
     out
 }
 
