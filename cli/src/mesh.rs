@@ -21,10 +21,10 @@ pub struct MeshArgs {
     #[arg(long)]
     pub points: Option<PathBuf>,
     /// Octree depth of the Poisson reconstruction (2-12).
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = MeshConfig::default().poisson.depth)]
     pub depth: u32,
     /// Screening weight of the samples (PoissonRecon's --pointWeight).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = MeshConfig::default().poisson.point_weight)]
     pub point_weight: f64,
     /// Trim the surface where the sampling density (PoissonRecon's log4 scale) is below this
     /// absolute value (0 keeps everything). Without it, --trim-below-median applies.
@@ -32,10 +32,10 @@ pub struct MeshArgs {
     pub trim: Option<f32>,
     /// Trim where the density is this far below the median vertex density (1: a quarter of
     /// the typical sampling density), whatever the point count and depth.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = default_below_median())]
     pub trim_below_median: f32,
     /// Face budget of the output (0 keeps every face).
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, default_value_t = MeshConfig::default().target_faces.unwrap_or(0))]
     pub faces: usize,
     /// Fail on points without normals instead of estimating them.
     #[arg(long)]
@@ -50,6 +50,14 @@ pub struct MeshArgs {
     /// Keep the orientation Poisson gives, even when cameras are known.
     #[arg(long)]
     pub no_orient: bool,
+}
+
+/// The library's default trimming, relative to the median density.
+fn default_below_median() -> f32 {
+    MeshConfig::default()
+        .trim
+        .and_then(|t| t.below_median)
+        .expect("MeshConfig trims relative to the median by default")
 }
 
 pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -124,8 +132,7 @@ fn cameras(args: &MeshArgs) -> anyhow::Result<Vec<(Camera, CamFromWorld)>> {
             }
         }
     };
-    let rec = colmap::read_model(&dir)
-        .with_context(|| format!("reading the cameras of {}", dir.display()))?;
+    let rec = colmap::read_model(&dir).context("reading the cameras")?;
     Ok(rec
         .images
         .values()
