@@ -148,7 +148,9 @@ mod tests {
         let x = [p.x as f32, p.y as f32, p.z as f32];
         let e = check.error(&x, 30.0, 20.0).unwrap();
         assert!(e < 0.05, "{e}");
-        let far = backproject(&k, 30.0, 20.0, 3.3);
+        // A third farther: the two views' disparities differ by about
+        // f B (1/3 - 1/4) = 100 * 0.4 / 12 = 3.3 px, the error the check must see.
+        let far = backproject(&k, 30.0, 20.0, 4.0);
         let e = check
             .error(&[far.x as f32, far.y as f32, far.z as f32], 30.0, 20.0)
             .unwrap();
