@@ -482,6 +482,106 @@ fn encode_png(image: &image::RgbImage, index: usize) -> Result<Vec<u8>, GlbError
     Ok(png)
 }
 
+/// GLB bytes parsed by gltf, after the checks gltf 1.4.1 leaves out and panics without
+/// (found by the glb fuzz targets of issue 19): a header declaring another length than the
+/// bytes have (it subtracts the header size from a declared length below 12 unchecked; a
+/// cut file is also the usual corruption, said plainly), and primitive attributes naming
+/// an accessor the file lacks (its validation looks the POSITION accessor up before it
+/// reports indices out of range). Every reader of GLB files goes through here.
+pub fn parse_glb(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    if bytes.len() >= 12 && bytes.starts_with(b"glTF") {
+        let declared = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as u64;
+        if declared != bytes.len() as u64 {
+            return Err(format!(
+                "the GLB header declares {declared} bytes but the file has {}: truncated or corrupt",
+                bytes.len()
+            ));
+        }
+    }
+    let raw = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| format!("not a valid GLB: {e}"))?;
+    let json = raw.document.into_json();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let attributes = prim.attributes.iter().map(|(s, i)| (Some(s), i));
+            for (semantic, index) in attributes.chain(prim.indices.iter().map(|i| (None, i))) {
+                let what = match semantic {
+                    None => "indices".to_string(),
+                    Some(Valid(s)) => format!("{s:?}"),
+                    Some(_) => "an unknown attribute".to_string(),
+                };
+                let accessor = json.accessors.get(index.value()).ok_or_else(|| {
+                    format!(
+                        "not a valid GLB: mesh {m} primitive {p} refers to accessor {}, the file has {}",
+                        index.value(),
+                        json.accessors.len()
+                    )
+                })?;
+                accessor_fits(accessor, semantic).map_err(|e| {
+                    format!(
+                        "not a valid GLB: mesh {m} primitive {p}: {what} accessor {}: {e}",
+                        index.value()
+                    )
+                })?;
+            }
+        }
+    }
+    // gltf's Image::source unwraps the buffer view and the MIME type of an embedded image.
+    for (i, image) in json.images.iter().enumerate() {
+        let embedded_ok = match &image.buffer_view {
+            Some(view) => view.value() < json.buffer_views.len() && image.mime_type.is_some(),
+            None => image.uri.is_some(),
+        };
+        if !embedded_ok {
+            return Err(format!(
+                "not a valid GLB: image {i} has neither a buffer view in range with a MIME type nor a URI"
+            ));
+        }
+    }
+    let document = gltf::Document::from_json(json).map_err(|e| format!("not a valid GLB: {e}"))?;
+    Ok(gltf::Gltf {
+        document,
+        blob: raw.blob,
+    })
+}
+
+/// Whether an accessor has a type and component type gltf's readers accept for `semantic`
+/// (`None`: primitive indices). gltf 1.4.1 assumes it and asserts the item size, or reaches
+/// `unreachable!`, on another (found by the core_glb fuzz target: a VEC2 POSITION). Sparse
+/// accessors are refused: fresco writes none, and gltf computes their extent unchecked.
+fn accessor_fits(
+    a: &json::Accessor,
+    semantic: Option<&json::validation::Checked<json::mesh::Semantic>>,
+) -> Result<(), String> {
+    use json::accessor::{ComponentType as C, Type as T};
+    use json::mesh::Semantic as S;
+    if a.sparse.is_some() {
+        return Err("sparse accessors are not supported".into());
+    }
+    let (Valid(ty), Valid(json::accessor::GenericComponentType(ct))) =
+        (&a.type_, &a.component_type)
+    else {
+        return Err("unknown type or component type".into());
+    };
+    let ok = match semantic {
+        None => *ty == T::Scalar && matches!(ct, C::U8 | C::U16 | C::U32),
+        Some(Valid(S::Positions | S::Normals)) => *ty == T::Vec3 && *ct == C::F32,
+        Some(Valid(S::Tangents)) => *ty == T::Vec4 && *ct == C::F32,
+        Some(Valid(S::TexCoords(_))) => *ty == T::Vec2 && matches!(ct, C::U8 | C::U16 | C::F32),
+        Some(Valid(S::Colors(_))) => {
+            matches!(ty, T::Vec3 | T::Vec4) && matches!(ct, C::U8 | C::U16 | C::F32)
+        }
+        Some(Valid(S::Joints(_))) => *ty == T::Vec4 && matches!(ct, C::U8 | C::U16),
+        Some(Valid(S::Weights(_))) => *ty == T::Vec4 && matches!(ct, C::U8 | C::U16 | C::F32),
+        _ => true,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!("type {ty:?} of {ct:?} is not one glTF allows here"))
+    }
+}
+
 /// Reads a GLB written by [`write_glb`] (or any GLB with triangle primitives, embedded
 /// images and the attributes fresco writes) back into a [`Mesh`] and its texture images:
 /// primitives are concatenated, `TEXCOORD_0` becomes corner UVs, each primitive's base
@@ -491,7 +591,7 @@ fn encode_png(image: &image::RgbImage, index: usize) -> Result<Vec<u8>, GlbError
 pub fn read_glb(path: &Path) -> Result<(Mesh, Vec<image::RgbImage>), FormatError> {
     let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, e))?;
     let bad = |m: String| FormatError::invalid(path, m);
-    let doc = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid GLB: {e}")))?;
+    let doc = parse_glb(&bytes).map_err(bad)?;
     let blob = doc.blob.as_deref().unwrap_or_default();
     let mut textures = Vec::new();
     for (i, im) in doc.images().enumerate() {
@@ -499,11 +599,14 @@ pub fn read_glb(path: &Path) -> Result<(Mesh, Vec<image::RgbImage>), FormatError
             return Err(bad(format!("image {i} is not embedded in the GLB")));
         };
         let data = blob
-            .get(view.offset()..view.offset() + view.length())
+            .get(view.offset()..view.offset().saturating_add(view.length()))
             .ok_or_else(|| bad(format!("image {i} lies outside the binary chunk")))?;
-        let img = image::load_from_memory(data)
-            .map_err(|e| bad(format!("image {i} does not decode: {e}")))?;
-        textures.push(img.into_rgb8());
+        // Within the photo limits: a header may declare any size (issue 19).
+        let name = path.join(format!("image {i}"));
+        let img =
+            crate::photo::decode_rgba_within(data, &name, &crate::photo::PhotoLimits::default())
+                .map_err(|e| bad(format!("image {i} does not decode: {e}")))?;
+        textures.push(image::DynamicImage::ImageRgba8(img).into_rgb8());
     }
     let mut mesh = Mesh::default();
     let (mut uvs, mut colors, mut face_textures) = (Vec::new(), Vec::new(), Vec::new());
@@ -529,6 +632,26 @@ pub fn read_glb(path: &Path) -> Result<(Mesh, Vec<image::RgbImage>), FormatError
                 reader.read_tex_coords(0).map(|t| t.into_f32().collect());
             let vertex_color: Option<Vec<[f32; 3]>> =
                 reader.read_colors(0).map(|c| c.into_rgb_f32().collect());
+            // Attributes are per vertex, positions finite: what is returned must pass
+            // `Mesh::validate` (found by the core_glb fuzz target: a COLOR_0 accessor of
+            // fewer items than POSITION was indexed past its end).
+            let at = format!("mesh {} primitive {}", gmesh.index(), prim.index());
+            if positions.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(bad(format!("{at}: a position is not finite")));
+            }
+            for (what, len) in [
+                ("TEXCOORD_0", vertex_uv.as_ref().map(Vec::len)),
+                ("COLOR_0", vertex_color.as_ref().map(Vec::len)),
+            ] {
+                if let Some(len) = len.filter(|&len| len != n) {
+                    return Err(bad(format!(
+                        "{at}: {what} has {len} items for {n} positions"
+                    )));
+                }
+            }
+            if vertex_uv.iter().flatten().flatten().any(|x| !x.is_finite()) {
+                return Err(bad(format!("{at}: a texture coordinate is not finite")));
+            }
             any_uv |= vertex_uv.is_some();
             any_color |= vertex_color.is_some();
             colors.extend((0..n).map(|v| {

@@ -53,7 +53,10 @@ pub fn read_par(path: &Path, width: u32, height: u32) -> Result<Vec<ParView>, Fo
             format!("bad header: expected the number of images, found {count_text:?}"),
         )
     })?;
-    let mut views: Vec<ParView> = Vec::with_capacity(count.min(1 << 16));
+    // A view line holds a name and 21 numbers: at least 44 bytes. Reserve no more views
+    // than the file can hold, whatever its first line says.
+    let mut views: Vec<ParView> = Vec::with_capacity(count.min(text.len() / 44));
+    let mut names = std::collections::HashSet::new();
     for (line, l) in lines {
         let err = |message: String| FormatError::text(path, line, message);
         let fields: Vec<&str> = l.split_ascii_whitespace().collect();
@@ -76,7 +79,15 @@ pub fn read_par(path: &Path, width: u32, height: u32) -> Result<Vec<ParView>, Fo
             };
         }
         let name = fields[0].to_string();
-        if views.iter().any(|view| view.name == name) {
+        // What `write_par` can store again; the fields are split at ASCII whitespace only,
+        // so a name could hold a vertical tab or a Unicode space (found by the middlebury
+        // fuzz target: such a file read, but could not be written back).
+        if name.chars().any(|c| c.is_whitespace() || c.is_control()) {
+            return Err(err(format!(
+                "image name {name:?} contains whitespace or a control character"
+            )));
+        }
+        if !names.insert(name.clone()) {
             return Err(err(format!("image {name} appears twice")));
         }
         let k = Matrix3::from_row_slice(&v[0..9]);

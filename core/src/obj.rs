@@ -50,15 +50,24 @@ pub struct ObjScene {
 /// Reads an OBJ file and its materials; see the module documentation.
 pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
     let path = path.as_ref();
-    // tobj reports a missing file as a bare "open file failed": check first for a clear error.
-    File::open(path).map_err(|e| FormatError::io(path, e))?;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj(path, &options).map_err(|e| locate_error(path, e))?;
+    // Only a regular file: a device (`/dev/zero`) would be read forever.
+    let meta = std::fs::metadata(path).map_err(|e| FormatError::io(path, e))?;
+    if !meta.is_file() {
+        return Err(FormatError::invalid(path, "not a regular file"));
+    }
+    let text = std::fs::read(path).map_err(|e| FormatError::io(path, e))?;
+    check_face_indices(&text).map_err(|(line, m)| FormatError::text(path, line, m))?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let (models, materials) = tobj::load_obj_buf(&mut text.as_slice(), &options, |mtl| {
+        load_mtl(&folder.join(mtl))
+    })
+    .map_err(|e| locate_error(path, e))?;
     let materials = match materials {
         Ok(m) => m,
         Err(e) => {
@@ -69,7 +78,6 @@ pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
             Vec::new()
         }
     };
-    let folder = path.parent().unwrap_or(Path::new(""));
     let materials: Vec<ObjMaterial> = materials
         .into_iter()
         .map(|m| ObjMaterial {
@@ -92,6 +100,63 @@ pub fn read_obj(path: impl AsRef<Path>) -> Result<ObjScene, FormatError> {
         materials,
         object_names,
     })
+}
+
+/// Checks the vertex indices of face, line and point records before tobj 4.0.5 reads them:
+/// it adds a negative (relative) index to the count so far and computes `3 * index + 2`
+/// unchecked, so `-21474836481` or an index past the end overflowed (found by the obj fuzz
+/// target). A relative index may go back at most to the first element of its kind; an
+/// absolute one past the end is left to tobj's own check, below 2^40 (no file holds more
+/// elements) so that its arithmetic cannot overflow. Returns the 1-based line.
+fn check_face_indices(text: &[u8]) -> Result<(), (usize, String)> {
+    // Positions, texture coordinates and normals read so far.
+    let mut counts = [0i64; 3];
+    for (n, line) in text.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f" | "l" | "p") => {
+                for word in words {
+                    for (k, part) in word.split('/').enumerate().take(3) {
+                        let Ok(i) = part.parse::<i64>() else { continue };
+                        if (i < 0 && -i > counts[k]) || i > 1 << 40 {
+                            let kind = ["vertex", "texture coordinate", "normal"][k];
+                            return Err((
+                                n + 1,
+                                format!("{kind} index {i} refers to no {kind} of the file"),
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// A material library named by an OBJ file (`mtllib`), for tobj. The name comes from the
+/// file, so only a regular file is read (`mtllib /dev/zero` made tobj read forever), and
+/// colour lines are checked before tobj parses them: tobj 4.0.5 panics on a `Ka`, `Kd`, `Ks`
+/// or `Ke` line with fewer than three numbers (found by the obj fuzz target). A library
+/// that fails either check is reported as unreadable, and the OBJ is read without it.
+fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
+    let regular = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+    if !regular {
+        return Err(tobj::LoadError::OpenFileFailed);
+    }
+    let text = std::fs::read(path).map_err(|_| tobj::LoadError::ReadError)?;
+    for line in text.split(|&b| b == b'\n') {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    }
+    tobj::load_mtl_buf(&mut text.as_slice())
 }
 
 /// Reads only the mesh of an OBJ file.

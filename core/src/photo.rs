@@ -8,10 +8,16 @@
 //! Grey is the Rec. 601 luma `0.299 R + 0.587 G + 0.114 B` in [0, 1] (what OpenCV's
 //! `cvtColor(..., COLOR_RGB2GRAY)` computes, so feature detectors see the same signal as OpenCV's),
 //! computed from the full precision of 16-bit files.
+//!
+//! A photo is refused before its pixels are decoded when its header declares more than
+//! [`PhotoLimits::max_pixels`] (default [`DEFAULT_MAX_PIXELS`]): a corrupt or hostile header
+//! cannot make fresco allocate gigabytes. The decoders (PNG, JPEG through zune-jpeg) have no
+//! reduced-resolution decoding, so a downscaling option such as `--max-image-size` applies
+//! after the decode; only this limit applies before it.
 
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, ImageDecoder, ImageReader, RgbImage};
+use image::{DynamicImage, ImageDecoder, ImageReader, RgbImage, RgbaImage};
 
 /// Why a photo could not be used.
 #[derive(Debug, thiserror::Error)]
@@ -33,6 +39,28 @@ pub enum PhotoError {
         height: u32,
     },
     #[error(
+        "{path}: the image is {width}x{height} pixels, more than the {max_pixels} pixels fresco decodes (a corrupt header, or a photo to downscale first)"
+    )]
+    TooLarge {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        max_pixels: u64,
+    },
+    #[error(
+        "{path}: the header declares {width}x{height} pixels, more than {bytes} bytes of file can encode (a truncated or corrupt file)"
+    )]
+    Truncated {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        bytes: u64,
+    },
+    #[error(
+        "{path}: decoding the image would need more memory than fresco allows a photo of at most {max_pixels} pixels (a corrupt header, or a photo to downscale first)"
+    )]
+    OverMemoryLimit { path: PathBuf, max_pixels: u64 },
+    #[error(
         "{path}: the image is too small ({width}x{height} pixels, needs at least {min_side} on each side)"
     )]
     TooSmall {
@@ -41,6 +69,39 @@ pub enum PhotoError {
         height: u32,
         min_side: u32,
     },
+}
+
+/// Photos larger than this many pixels (16384 x 16384, 268 megapixels; the largest
+/// medium-format sensors have about 150) are refused unless a caller raises the limit.
+/// Decoding costs 10 to 20 bytes per pixel (the decoded image, its RGB8 copy, the f32 grey).
+pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
+/// Decoded bytes an image file can hold per byte of file (see [`checked_decoder`]).
+const MAX_EXPANSION: u64 = 8 * 1040;
+
+/// What a photo may cost, checked from its header before any pixel is decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PhotoLimits {
+    /// Largest width x height accepted (default [`DEFAULT_MAX_PIXELS`]).
+    pub max_pixels: u64,
+}
+
+impl Default for PhotoLimits {
+    fn default() -> Self {
+        PhotoLimits {
+            max_pixels: DEFAULT_MAX_PIXELS,
+        }
+    }
+}
+
+impl PhotoLimits {
+    /// The bound handed to the decoders for their own buffers: 8 bytes per pixel (RGBA, 16
+    /// bits per channel) plus 64 MiB for metadata chunks (ICC profiles, EXIF, text).
+    fn decoder_limits(&self) -> image::Limits {
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(self.max_pixels.saturating_mul(8).saturating_add(64 << 20));
+        limits
+    }
 }
 
 /// A grey image with f32 samples in row-major order (`data[y * width + x]`).
@@ -109,51 +170,58 @@ impl Photo {
     }
 }
 
-/// Reads and decodes the photo at `path` (format guessed from its bytes, not its extension).
+/// Reads and decodes the photo at `path` (format guessed from its bytes, not its extension),
+/// within the default [`PhotoLimits`].
 pub fn load_photo(path: &Path) -> Result<Photo, PhotoError> {
-    let bytes = std::fs::read(path).map_err(|error| PhotoError::Unreadable {
+    load_photo_within(path, &PhotoLimits::default())
+}
+
+/// [`load_photo`] within `limits`.
+pub fn load_photo_within(path: &Path, limits: &PhotoLimits) -> Result<Photo, PhotoError> {
+    decode_photo_within(&read_image_file(path)?, path, limits)
+}
+
+/// An image file read as RGBA8 (a texture, a bitmap to project) within `limits`.
+pub fn load_rgba_within(path: &Path, limits: &PhotoLimits) -> Result<RgbaImage, PhotoError> {
+    decode_rgba_within(&read_image_file(path)?, path, limits)
+}
+
+/// The bytes of an image file. Only regular files are read: a path a model or script names
+/// could be a device (`/dev/zero` never ends) or a pipe (never answers).
+fn read_image_file(path: &Path) -> Result<Vec<u8>, PhotoError> {
+    let unreadable = |error| PhotoError::Unreadable {
         path: path.to_path_buf(),
         error,
-    })?;
-    decode_photo(&bytes, path)
+    };
+    let meta = std::fs::metadata(path).map_err(unreadable)?;
+    if !meta.is_file() {
+        return Err(unreadable(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        )));
+    }
+    std::fs::read(path).map_err(unreadable)
 }
 
 /// Decodes an encoded photo held in memory; `path` names it in errors and in [`Photo::path`].
 pub fn decode_photo(bytes: &[u8], path: &Path) -> Result<Photo, PhotoError> {
-    let decode_error = |e: &dyn std::fmt::Display| PhotoError::Decode {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    if bytes.is_empty() {
-        return Err(PhotoError::EmptyFile {
-            path: path.to_path_buf(),
-        });
-    }
-    let reader = ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| decode_error(&e))?;
-    if reader.format().is_none() {
-        return Err(PhotoError::Decode {
-            path: path.to_path_buf(),
-            message: "unknown image format (fresco reads PNG and JPEG)".into(),
-        });
-    }
-    let mut decoder = reader.into_decoder().map_err(|e| decode_error(&e))?;
-    let (width, height) = decoder.dimensions();
-    if width == 0 || height == 0 {
-        return Err(PhotoError::ZeroSize {
-            path: path.to_path_buf(),
-            width,
-            height,
-        });
-    }
+    decode_photo_within(bytes, path, &PhotoLimits::default())
+}
+
+/// [`decode_photo`] within `limits`: the declared size is checked before decoding.
+pub fn decode_photo_within(
+    bytes: &[u8],
+    path: &Path,
+    limits: &PhotoLimits,
+) -> Result<Photo, PhotoError> {
+    let mut decoder = checked_decoder(bytes, path, limits)?;
     // Metadata errors must not make a readable photo unusable: a broken EXIF block is ignored.
     let exif = decoder.exif_metadata().ok().flatten();
     let exif_orientation = exif
         .as_deref()
         .and_then(image::metadata::Orientation::from_exif_chunk)
         .map(orientation_tag);
-    let image = DynamicImage::from_decoder(decoder).map_err(|e| decode_error(&e))?;
+    let image = DynamicImage::from_decoder(decoder).map_err(|e| image_error(path, limits, e))?;
     let stored_as = format!("{:?}", image.color());
     let grey = luma_f32(&image);
     let rgb = image.into_rgb8();
@@ -165,6 +233,92 @@ pub fn decode_photo(bytes: &[u8], path: &Path) -> Result<Photo, PhotoError> {
         exif,
         stored_as,
     })
+}
+
+/// Decodes an encoded image (a texture, a mask, a bitmap to project) to RGBA8 within
+/// `limits`, with the checks of [`decode_photo_within`]; `path` names it in errors.
+pub fn decode_rgba_within(
+    bytes: &[u8],
+    path: &Path,
+    limits: &PhotoLimits,
+) -> Result<RgbaImage, PhotoError> {
+    let decoder = checked_decoder(bytes, path, limits)?;
+    let image = DynamicImage::from_decoder(decoder).map_err(|e| image_error(path, limits, e))?;
+    Ok(image.into_rgba8())
+}
+
+/// A decoder's error; its refusal to allocate beyond `limits` is said as such.
+fn image_error(path: &Path, limits: &PhotoLimits, e: image::ImageError) -> PhotoError {
+    match e {
+        image::ImageError::Limits(_) => PhotoError::OverMemoryLimit {
+            path: path.to_path_buf(),
+            max_pixels: limits.max_pixels,
+        },
+        e => decode_error(path, &e),
+    }
+}
+
+fn decode_error(path: &Path, e: &dyn std::fmt::Display) -> PhotoError {
+    PhotoError::Decode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// The decoder of `bytes` once its header has passed: a known format, a non-empty size
+/// within `limits`.
+fn checked_decoder<'a>(
+    bytes: &'a [u8],
+    path: &Path,
+    limits: &PhotoLimits,
+) -> Result<impl ImageDecoder + 'a, PhotoError> {
+    if bytes.is_empty() {
+        return Err(PhotoError::EmptyFile {
+            path: path.to_path_buf(),
+        });
+    }
+    let mut reader = ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| decode_error(path, &e))?;
+    reader.limits(limits.decoder_limits());
+    if reader.format().is_none() {
+        return Err(PhotoError::Decode {
+            path: path.to_path_buf(),
+            message: "unknown image format (fresco reads PNG and JPEG)".into(),
+        });
+    }
+    let decoder = reader
+        .into_decoder()
+        .map_err(|e| image_error(path, limits, e))?;
+    let (width, height) = decoder.dimensions();
+    if width == 0 || height == 0 {
+        return Err(PhotoError::ZeroSize {
+            path: path.to_path_buf(),
+            width,
+            height,
+        });
+    }
+    if width as u64 * height as u64 > limits.max_pixels {
+        return Err(PhotoError::TooLarge {
+            path: path.to_path_buf(),
+            width,
+            height,
+            max_pixels: limits.max_pixels,
+        });
+    }
+    // The decoders allocate the whole image before reading its data: a header must not
+    // claim more pixels than the file can encode. Deflate expands at most 1032:1 and a PNG
+    // packs up to 8 one-bit pixels per byte, so no PNG decodes to more than about 8300
+    // times its size (JPEG, a few bits per 8x8 block, stays below 1000:1).
+    if decoder.total_bytes() > MAX_EXPANSION * bytes.len() as u64 + (64 << 10) {
+        return Err(PhotoError::Truncated {
+            path: path.to_path_buf(),
+            width,
+            height,
+            bytes: bytes.len() as u64,
+        });
+    }
+    Ok(decoder)
 }
 
 /// The EXIF tag value (1..8) of an orientation.

@@ -302,14 +302,16 @@ impl<R: Read> Source<R> {
         }
     }
 
-    /// Makes `n` bytes available at `pos`; false if the file ends first.
+    /// Makes `n` bytes available at `pos`; false if the file ends first. The buffer grows
+    /// (doubling) only as the bytes arrive, so a corrupt count asking for more than the file
+    /// holds costs at most twice the rest of the file, not `n`.
     #[inline]
     fn ensure(&mut self, n: usize) -> io::Result<bool> {
         while self.end - self.pos < n {
             if self.eof {
                 return Ok(false);
             }
-            self.refill(n.max(BUFFER_BYTES))?;
+            self.refill(BUFFER_BYTES)?;
         }
         Ok(true)
     }
@@ -979,6 +981,13 @@ impl<R: Read> PlyReader<R> {
     fn seek_element(&mut self, target: usize) -> Result<bool, FormatError> {
         self.settle();
         while self.element < target {
+            if !self.is_ascii() && self.header.elements[self.element].fixed_size() == Some(0) {
+                // Items without properties take no bytes: skipping them one by one would
+                // loop `count` times (2^64 for a corrupt header) without reading anything.
+                self.done = self.header.elements[self.element].count;
+                self.settle();
+                continue;
+            }
             self.skip_item()?;
             self.done += 1;
             self.settle();
@@ -1776,16 +1785,44 @@ impl<R: Read> Iterator for Triangles<'_, R> {
 // ---------------------------------------------------------------------------------------
 // Whole meshes.
 
+/// The fewest bytes one item of `e` takes in the data: its scalars and list counts in a
+/// binary file, a digit and a separator per property in an ascii one.
+fn min_item_bytes(e: &ElementDef, format: PlyFormat) -> u64 {
+    match format {
+        PlyFormat::Ascii => 2 * e.properties.len() as u64,
+        _ => e
+            .properties
+            .iter()
+            .map(|p| match p.kind {
+                PropertyKind::Scalar(t) => t.size() as u64,
+                PropertyKind::List { count, .. } => count.size() as u64,
+            })
+            .sum(),
+    }
+}
+
 /// Reads a mesh (or a point cloud: no face element) from a PLY file. Polygons are
 /// fan-triangulated (per-face attributes repeat on each triangle). Rejects NaN or infinite
-/// coordinates, naming the vertex and its line or byte offset.
+/// positions, normals and texture coordinates, naming the vertex or face and its line or
+/// byte offset: what it returns passes [`Mesh::validate`].
 pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
     let path = path.as_ref();
     let mut r = PlyReader::open(path)?;
     let mut mesh = Mesh::default();
-    // Reserve from the header, but never trust a corrupt count with a huge allocation.
-    let reserve = |n: u64| n.min(1 << 22) as usize;
-    mesh.positions.reserve(reserve(r.vertex_count()));
+    // Reserve from the header, but never more items than the rest of the file can hold: a
+    // 1 kB file announcing 4 billion vertices must not allocate for them.
+    let data_bytes = std::fs::metadata(path)
+        .map(|m| m.len().saturating_sub(r.header.data_offset))
+        .unwrap_or(0);
+    let format = r.header.format;
+    let reserve = |e: Option<usize>, r: &PlyReader<File>| {
+        e.map_or(0, |i| {
+            let e = &r.header.elements[i];
+            let fit = data_bytes / min_item_bytes(e, format).max(1);
+            e.count.min(fit).min(1 << 22) as usize
+        })
+    };
+    mesh.positions.reserve(reserve(r.vertex_element, &r));
     let mut normals = r.has_normals().then(Vec::new);
     let mut colors = r.has_colors().then(Vec::new);
     let mut vertex_uvs = r.has_vertex_uvs().then(Vec::new);
@@ -1814,6 +1851,24 @@ pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
                     ),
                 ));
             }
+            // Normals and texture coordinates too: the mesh must pass `Mesh::validate`, or
+            // it cannot be written back (found by the ply_bytes fuzz target: NaN normals).
+            let normal_ok = v.normal.is_none_or(|n| n.iter().all(|x| x.is_finite()));
+            let uv_ok = v.uv.is_none_or(|uv| uv.iter().all(|x| x.is_finite()));
+            if !(normal_ok && uv_ok) {
+                return Err(located(
+                    path,
+                    r.last_location(),
+                    format!(
+                        "vertex {index}: {} is not finite",
+                        if normal_ok {
+                            "texture coordinate"
+                        } else {
+                            "normal"
+                        }
+                    ),
+                ));
+            }
             mesh.positions.push(p);
             if let (Some(ns), Some(n)) = (normals.as_mut(), v.normal) {
                 ns.push(n);
@@ -1829,7 +1884,7 @@ pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
         Ok(())
     };
     let mut read_faces = |r: &mut PlyReader<File>, mesh: &mut Mesh| -> Result<(), FormatError> {
-        mesh.faces.reserve(reserve(r.face_count()));
+        mesh.faces.reserve(reserve(r.face_element, r));
         let mut index = 0u64;
         while r.next_face(&mut face)? {
             let n = face.indices.len();
@@ -1838,6 +1893,13 @@ pub fn read_mesh(path: impl AsRef<Path>) -> Result<Mesh, FormatError> {
                     path,
                     r.last_location(),
                     format!("face {index}: {n} vertex indices; a face needs at least 3"),
+                ));
+            }
+            if face.texcoords.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(located(
+                    path,
+                    r.last_location(),
+                    format!("face {index}: a texture coordinate is not finite"),
                 ));
             }
             for k in 1..n - 1 {

@@ -116,13 +116,7 @@ impl Pst {
             return Ok(());
         }
         let path = self.evicted_path(id);
-        let own = SampleSet::load(&path)?;
-        if own.width != self.samples.width {
-            return Err(PstError::store(
-                &path,
-                "evicted samples have another attribute width",
-            ));
-        }
+        let own = self.load_evicted(id, self.samples.width)?;
         let keep: Vec<bool> = self.samples.nodes.iter().map(|&n| n != id).collect();
         self.samples.retain_indices(|i| keep[i]);
         self.samples.append(&own);
@@ -182,7 +176,7 @@ impl Pst {
             .collect();
         for &id in &ids {
             let path = self.evicted_path(id);
-            let mut own = SampleSet::load(&path)?;
+            let mut own = self.load_evicted(id, self.samples.width)?;
             edit(&mut own);
             own.save(&path)?;
             let keep: Vec<bool> = self.samples.nodes.iter().map(|&n| n != id).collect();

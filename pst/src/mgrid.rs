@@ -88,13 +88,14 @@ impl Level1Grid {
         Aabb { min, max }
     }
 
-    /// The sub-grid of `res` cells per axis inside cell `c`.
+    /// The sub-grid of `res` cells per axis inside cell `c`, at most [`MAX_SUBGRID_RES`].
     pub fn subgrid(&self, c: [u32; 3], res: u32) -> SubGrid {
         let b = self.cell_box(c);
+        let res = res.clamp(1, MAX_SUBGRID_RES);
         SubGrid {
             origin: [b.min.x, b.min.y, b.min.z],
-            cell: self.cell_size / res.max(1) as f64,
-            res: res.max(1),
+            cell: self.cell_size / res as f64,
+            res,
         }
     }
 }
@@ -115,6 +116,11 @@ pub fn node_target(n: f64, n0: f64, alpha: f64, gamma: f64, gamma_min: f64, gamm
 pub fn paper_subgrid_resolution(r: f64) -> u32 {
     (r.max(1.0).sqrt().round() as u32).max(1)
 }
+
+/// Finest sub-grid resolution per axis: 2^20 keeps res^3 and the cell indices within u64
+/// (a refinement factor or spacing asking for more, e.g. 4294967295, overflowed them), and
+/// is finer than any sampling needs (every input point is its own cell long before).
+pub const MAX_SUBGRID_RES: u32 = 1 << 20;
 
 /// A uniform sub-grid inside one 1-node: `res` cubic cells of side `cell` per axis.
 #[derive(Clone, Copy, Debug, PartialEq)]

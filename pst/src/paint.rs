@@ -138,6 +138,129 @@ fn eight() -> usize {
     8
 }
 
+/// Most smoothing iterations one op may ask (each is a k-NN pass over the selection).
+pub const MAX_SMOOTH_ITERATIONS: u32 = 1000;
+/// Largest neighbourhood of a smoothing op.
+pub const MAX_SMOOTH_K: usize = 256;
+/// Most noise octaves.
+pub const MAX_OCTAVES: u32 = 32;
+
+impl Op {
+    /// Checks the values an ops file gives before anything is applied: counts within the
+    /// bounds above (4294967295 smoothing iterations or noise octaves never end; found by
+    /// the pst_script fuzz target), numbers finite, regions well formed.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let finite = |what: &str, v: &[f32]| -> std::result::Result<(), String> {
+            match v.iter().find(|x| !x.is_finite()) {
+                Some(x) => Err(format!("{what} holds {x}, not a finite number")),
+                None => Ok(()),
+            }
+        };
+        let finite64 =
+            |what: &str, v: &[f64]| finite(what, &v.iter().map(|&x| x as f32).collect::<Vec<_>>());
+        let region_ok = |r: &Region| match r {
+            Region::Box { min, max } => {
+                finite64("region box", &[min.as_slice(), max.as_slice()].concat())
+            }
+            Region::Sphere { center, radius } if *radius > 0.0 => {
+                finite64("region sphere", &[center[0], center[1], center[2], *radius])
+            }
+            Region::Sphere { radius, .. } => {
+                Err(format!("region sphere radius {radius} is not > 0"))
+            }
+            Region::All => Ok(()),
+        };
+        match self {
+            Op::Fill {
+                region,
+                value,
+                opacity,
+                ..
+            } => {
+                region_ok(region)?;
+                finite("value", value)?;
+                finite("opacity", &[*opacity])
+            }
+            Op::Noise {
+                region,
+                a,
+                b,
+                scale,
+                octaves,
+                opacity,
+                ..
+            } => {
+                region_ok(region)?;
+                finite("a", a)?;
+                finite("b", b)?;
+                finite("opacity", &[*opacity])?;
+                finite64("scale", &[*scale])?;
+                if *octaves > MAX_OCTAVES {
+                    return Err(format!("{octaves} octaves (at most {MAX_OCTAVES})"));
+                }
+                Ok(())
+            }
+            Op::Smooth {
+                region,
+                iterations,
+                k,
+                ..
+            } => {
+                region_ok(region)?;
+                if *iterations > MAX_SMOOTH_ITERATIONS {
+                    return Err(format!(
+                        "{iterations} iterations (at most {MAX_SMOOTH_ITERATIONS})"
+                    ));
+                }
+                if !(1..=MAX_SMOOTH_K).contains(k) {
+                    return Err(format!("k = {k} (1 to {MAX_SMOOTH_K})"));
+                }
+                Ok(())
+            }
+            Op::Project {
+                origin,
+                u,
+                v,
+                depth,
+                opacity,
+                ..
+            } => {
+                finite64("projector", &[origin.as_slice(), u, v].concat())?;
+                finite("opacity", &[*opacity])?;
+                match depth {
+                    Some(d) if !(d.is_finite() && *d > 0.0) => Err(format!("depth {d} is not > 0")),
+                    _ => Ok(()),
+                }
+            }
+            Op::Refine { region, .. } => region_ok(region),
+            Op::Transfer {
+                region,
+                max_distance,
+                ..
+            } => {
+                region_ok(region)?;
+                match max_distance {
+                    Some(d) if d.is_nan() || *d < 0.0 => {
+                        Err(format!("max_distance {d} is not >= 0"))
+                    }
+                    _ => Ok(()),
+                }
+            }
+            Op::AddChannel { default, .. } => {
+                finite("default", default)?;
+                if default.len() > crate::store::MAX_WIDTH {
+                    return Err(format!(
+                        "{} default values (at most {} per sample)",
+                        default.len(),
+                        crate::store::MAX_WIDTH
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
 /// An ops file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Script {
@@ -223,6 +346,8 @@ pub fn apply_op(
         .ok()
         .and_then(|v| v.get("op").and_then(|s| s.as_str()).map(str::to_string))
         .unwrap_or_default();
+    op.check()
+        .map_err(|m| PstError::Parameter(format!("{name}: {m}")))?;
     let mut changed = 0;
     let mut evicted = 0;
     let mut touched = Vec::new();
@@ -440,12 +565,8 @@ pub fn apply_op(
 }
 
 fn read_rgba(path: &Path) -> Result<RgbaImage> {
-    let bytes = std::fs::read(path).map_err(|e| PstError::io(path, "cannot read the image", e))?;
-    image::load_from_memory(&bytes)
-        .map(|i| i.to_rgba8())
-        .map_err(|e| {
-            PstError::Parameter(format!("{}: cannot decode the image: {e}", path.display()))
-        })
+    fresco_core::photo::load_rgba_within(path, &fresco_core::photo::PhotoLimits::default())
+        .map_err(|e| PstError::Parameter(format!("cannot read the image: {e}")))
 }
 
 /// An orthographic planar projector of a bitmap.

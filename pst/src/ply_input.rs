@@ -176,7 +176,12 @@ impl PlyPoints {
         let path = &self.path;
         let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
         let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
-        let need = layout.start + layout.count * layout.stride as u64;
+        // A corrupt count may overflow: no file holds that many bytes.
+        let need = layout
+            .count
+            .checked_mul(layout.stride as u64)
+            .and_then(|b| b.checked_add(layout.start))
+            .unwrap_or(u64::MAX);
         if len < need {
             // Cut short: say where and in which vertex, as core's reader does.
             let whole = len.saturating_sub(layout.start) / layout.stride as u64;

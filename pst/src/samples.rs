@@ -136,12 +136,16 @@ impl SampleSet {
         }
         let count = u64::from_le_bytes(head[8..16].try_into().expect("8 bytes"));
         let width = u32::from_le_bytes(head[16..20].try_into().expect("4 bytes")) as u64;
-        let expected = 24 + count * (12 + 12 + 4 + 4 * width);
-        if len != expected {
+        // A corrupt count overflows the product: no file has that many bytes.
+        let expected = count
+            .checked_mul(12 + 12 + 4 + 4 * width)
+            .and_then(|b| b.checked_add(24));
+        if expected != Some(len) {
+            let needs = expected.map_or("more than 2^64".to_string(), |e| e.to_string());
             return Err(PstError::store(
                 path,
                 format!(
-                    "samples file is {len} bytes, its header ({count} samples of width {width}) needs {expected}"
+                    "samples file is {len} bytes, its header ({count} samples of width {width}) needs {needs}"
                 ),
             ));
         }

@@ -96,6 +96,63 @@ pub struct Manifest {
     pub clock: u64,
 }
 
+impl Manifest {
+    /// What the rest of the crate relies on, checked once when a folder is opened: node `i`
+    /// has id `i` and a cell inside the grid, the grid has cells of a finite positive size,
+    /// each channel's default has its width. A hand-edited or corrupt manifest otherwise
+    /// made the LRU and the exports index out of bounds (found by the pst_store fuzz target).
+    fn check(&self) -> std::result::Result<(), String> {
+        let g = &self.grid;
+        if !(g.cell_size.is_finite() && g.cell_size > 0.0 && g.origin.iter().all(|x| x.is_finite()))
+        {
+            return Err(format!(
+                "grid cell size {} or origin {:?} is not finite and positive",
+                g.cell_size, g.origin
+            ));
+        }
+        if g.dims.contains(&0) {
+            return Err(format!("grid dimensions {:?} include 0", g.dims));
+        }
+        if !self.bbox.iter().flatten().all(|x| x.is_finite()) {
+            return Err("bounding box is not finite".into());
+        }
+        for (i, node) in self.nodes.iter().enumerate() {
+            if node.info.id as usize != i {
+                return Err(format!("node {i} has id {}", node.info.id));
+            }
+            if (0..3).any(|a| node.info.cell[a] >= g.dims[a]) {
+                return Err(format!(
+                    "node {i} lies in cell {:?}, outside the {:?} grid",
+                    node.info.cell, g.dims
+                ));
+            }
+        }
+        let mut width = 0usize;
+        for c in &self.channels {
+            if c.width == 0 || c.width != c.default.len() {
+                return Err(format!(
+                    "channel {} has width {} and {} default values",
+                    c.name,
+                    c.width,
+                    c.default.len()
+                ));
+            }
+            width += c.width;
+        }
+        if self.channels.is_empty() || width > MAX_WIDTH {
+            return Err(format!(
+                "{} channels of {width} values in all (1 to {MAX_WIDTH})",
+                self.channels.len()
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Most attribute floats per sample (all channels): a manifest or an ops file asking for
+/// more is refused (an `add_channel` of a million values multiplies every sample's size).
+pub const MAX_WIDTH: usize = 256;
+
 /// Settings of [`Pst::create`].
 #[derive(Clone, Debug)]
 pub struct CreateConfig {
@@ -287,6 +344,9 @@ impl Pst {
                 ),
             ));
         }
+        manifest
+            .check()
+            .map_err(|m| PstError::store(dir, format!("{MANIFEST}: {m}")))?;
         let samples = SampleSet::load(&dir.join(SAMPLES))?;
         let width: usize = manifest.channels.iter().map(|c| c.width).sum();
         if samples.width != width {
@@ -346,19 +406,49 @@ impl Pst {
                 channel.name
             )));
         }
-        self.samples.add_channel(&channel.default);
-        for node in self.manifest.nodes.iter().filter(|n| !n.resident) {
-            let path = self.evicted_path(node.info.id);
-            let mut s = SampleSet::load(&path)?;
-            s.add_channel(&channel.default);
-            s.save(&path)?;
+        let width = self.samples.width;
+        if width + channel.default.len() > MAX_WIDTH {
+            return Err(PstError::Parameter(format!(
+                "channel {} would make {} attribute floats per sample (at most {MAX_WIDTH})",
+                channel.name,
+                width + channel.default.len()
+            )));
         }
+        for node in self.manifest.nodes.iter().filter(|n| !n.resident) {
+            let mut s = self.load_evicted(node.info.id, width)?;
+            s.add_channel(&channel.default);
+            s.save(&self.evicted_path(node.info.id))?;
+        }
+        self.samples.add_channel(&channel.default);
         self.manifest.channels.push(channel);
         Ok(())
     }
 
     pub fn node_file(&self, id: u32) -> PathBuf {
         self.dir.join(NODES).join(node_file_name(id))
+    }
+
+    /// The stored samples of evicted node `id`, checked to be that node's and of `width`
+    /// attribute floats.
+    pub(crate) fn load_evicted(&self, id: u32, width: usize) -> Result<SampleSet> {
+        let path = self.evicted_path(id);
+        let set = SampleSet::load(&path)?;
+        if set.width != width {
+            return Err(PstError::store(
+                &path,
+                format!(
+                    "evicted samples have {} attribute floats, the PST {width}",
+                    set.width
+                ),
+            ));
+        }
+        if let Some(other) = set.nodes.iter().find(|&&n| n != id) {
+            return Err(PstError::store(
+                &path,
+                format!("the samples of evicted node {id} name node {other}"),
+            ));
+        }
+        Ok(set)
     }
 
     pub fn evicted_path(&self, id: u32) -> PathBuf {
@@ -388,7 +478,7 @@ impl Pst {
         };
         all.retain_indices(|i| !is_evicted[self.samples.nodes[i] as usize]);
         for id in evicted {
-            all.append(&SampleSet::load(&self.evicted_path(id))?);
+            all.append(&self.load_evicted(id, all.width)?);
         }
         Ok(all)
     }

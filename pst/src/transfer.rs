@@ -8,9 +8,11 @@
 //! `max_distance` from the model are left as they are.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use fresco_core::Mesh;
 use fresco_core::nalgebra::Point3;
+use fresco_core::photo::PhotoLimits;
 use image::RgbaImage;
 use rayon::prelude::*;
 
@@ -21,8 +23,9 @@ use crate::samples::SampleSet;
 /// A mesh with what colours its surface.
 pub struct TexturedModel {
     pub mesh: Mesh,
-    /// Texture images, indexed by `mesh.face_textures` (or the first for every face).
-    pub textures: Vec<Option<RgbaImage>>,
+    /// Texture images, indexed by `mesh.face_textures` (or the first for every face);
+    /// shared, not copied, between the materials that use one image.
+    pub textures: Vec<Option<Arc<RgbaImage>>>,
     /// Per-material base colour (linear factor as stored, in [0, 1]).
     pub base_colors: Vec<[f32; 3]>,
 }
@@ -127,7 +130,7 @@ fn load_obj(path: &Path) -> Result<TexturedModel> {
     let mut base_colors = Vec::new();
     for m in &scene.materials {
         textures.push(match &m.diffuse_texture {
-            Some(t) => Some(read_image(t)?),
+            Some(t) => Some(Arc::new(read_image(t)?)),
             None => None,
         });
         base_colors.push(m.diffuse_color.unwrap_or([0.8; 3]));
@@ -140,42 +143,34 @@ fn load_obj(path: &Path) -> Result<TexturedModel> {
 }
 
 fn read_image(path: &Path) -> Result<RgbaImage> {
-    let bytes =
-        std::fs::read(path).map_err(|e| PstError::io(path, "cannot read the texture", e))?;
-    image::load_from_memory(&bytes)
-        .map(|i| i.to_rgba8())
-        .map_err(|e| {
-            PstError::Parameter(format!(
-                "{}: cannot decode the texture: {e}",
-                path.display()
-            ))
-        })
+    fresco_core::photo::load_rgba_within(path, &PhotoLimits::default())
+        .map_err(|e| PstError::Parameter(format!("cannot read the texture: {e}")))
 }
 
 fn load_glb(path: &Path) -> Result<TexturedModel> {
     let bytes = std::fs::read(path).map_err(|e| PstError::io(path, "cannot read the model", e))?;
     let bad = |m: String| PstError::Format(fresco_core::FormatError::invalid(path, m));
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid GLB: {e}")))?;
+    let gltf = fresco_core::gltf::parse_glb(&bytes).map_err(bad)?;
     let blob = gltf.blob.as_deref();
     let buffer_data = |b: gltf::Buffer<'_>| match b.source() {
         gltf::buffer::Source::Bin => blob,
         gltf::buffer::Source::Uri(_) => None,
     };
     // Images (embedded in buffer views), decoded once.
-    let mut images: Vec<Option<RgbaImage>> = Vec::new();
+    let mut images: Vec<Option<Arc<RgbaImage>>> = Vec::new();
     for img in gltf.images() {
         images.push(match img.source() {
             gltf::image::Source::View { view, .. } => {
                 let data = buffer_data(view.buffer())
                     .ok_or_else(|| bad("image data outside the GLB".into()))?;
                 let slice = data
-                    .get(view.offset()..view.offset() + view.length())
+                    .get(view.offset()..view.offset().saturating_add(view.length()))
                     .ok_or_else(|| bad("image buffer view out of range".into()))?;
-                Some(
-                    image::load_from_memory(slice)
-                        .map_err(|e| bad(format!("embedded image: {e}")))?
-                        .to_rgba8(),
-                )
+                let name = path.join(format!("image {}", img.index()));
+                Some(Arc::new(
+                    fresco_core::photo::decode_rgba_within(slice, &name, &PhotoLimits::default())
+                        .map_err(|e| bad(format!("embedded {e}")))?,
+                ))
             }
             gltf::image::Source::Uri { .. } => None,
         });
@@ -196,6 +191,10 @@ fn load_glb(path: &Path) -> Result<TexturedModel> {
             let base = mesh.positions.len() as u32;
             let pos: Vec<[f32; 3]> = pos.collect();
             let n = pos.len();
+            let at = || format!("mesh {} primitive {}", gmesh.index(), prim.index());
+            if pos.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(bad(format!("{}: a position is not finite", at())));
+            }
             mesh.positions.extend(
                 pos.iter()
                     .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
@@ -204,6 +203,21 @@ fn load_glb(path: &Path) -> Result<TexturedModel> {
                 reader.read_tex_coords(0).map(|t| t.into_f32().collect());
             let col: Option<Vec<[u8; 3]>> =
                 reader.read_colors(0).map(|c| c.into_rgb_u8().collect());
+            // Attributes are per vertex: each must have one item per position.
+            for (what, len) in [
+                ("TEXCOORD_0", tc.as_ref().map(Vec::len)),
+                ("COLOR_0", col.as_ref().map(Vec::len)),
+            ] {
+                if let Some(len) = len.filter(|&len| len != n) {
+                    return Err(bad(format!(
+                        "{}: {what} has {len} items for {n} positions",
+                        at()
+                    )));
+                }
+            }
+            if tc.iter().flatten().flatten().any(|x| !x.is_finite()) {
+                return Err(bad(format!("{}: a texture coordinate is not finite", at())));
+            }
             any_uv |= tc.is_some();
             any_color |= col.is_some();
             colors.extend(col.unwrap_or_else(|| vec![[204; 3]; n]));

@@ -85,12 +85,36 @@ pub fn read_images(ws: &Path) -> Result<ImageList, FormatError> {
         ));
     }
     let mut ids = std::collections::HashSet::new();
+    let mut names = std::collections::HashSet::new();
     for image in &list.images {
+        let bad = |m: String| FormatError::invalid(&path, format!("image {}: {m}", image.id));
         if !ids.insert(image.id) {
-            return Err(FormatError::invalid(
-                &path,
-                format!("image id {} appears twice", image.id),
-            ));
+            return Err(bad("the id appears twice".into()));
+        }
+        // The name becomes `features/<name>.sift`: a path in it would read (and write)
+        // outside the workspace.
+        let name = &image.name;
+        if name.is_empty()
+            || name == "."
+            || name == ".."
+            || name.contains(['/', '\\', '\0'])
+            || !names.insert(name.as_str())
+        {
+            return Err(bad(format!(
+                "name {name:?} is not a plain file name unique in the workspace"
+            )));
+        }
+        if image.width == 0 || image.height == 0 {
+            return Err(bad(format!("size {}x{}", image.width, image.height)));
+        }
+        let p = &image.prior;
+        let focal_ok =
+            p.focal_x > 0.0 && p.focal_y > 0.0 && p.focal_x.is_finite() && p.focal_y.is_finite();
+        if !(focal_ok && p.cx.is_finite() && p.cy.is_finite()) {
+            return Err(bad(format!(
+                "focal prior ({}, {}) at ({}, {}) is not positive and finite",
+                p.focal_x, p.focal_y, p.cx, p.cy
+            )));
         }
     }
     Ok(list)

@@ -40,7 +40,7 @@ pub fn load_model(path: &Path) -> Result<Model> {
                 .iter()
                 .map(|t| {
                     t.as_ref()
-                        .map(|i| image::DynamicImage::ImageRgba8(i.clone()).to_rgb8())
+                        .map(|i| image::DynamicImage::ImageRgba8((**i).clone()).to_rgb8())
                 })
                 .collect();
             Ok(Model {

@@ -150,14 +150,30 @@ pub fn decode_matches(bytes: &[u8], path: &Path) -> Result<Vec<VerifiedPair>, Fo
                 ]
             })
             .collect();
-        let cam2_from_cam1 = (flags & 8 != 0).then(|| {
-            Rigid3::new(
-                UnitQuaternion::from_quaternion(Quaternion::new(
-                    pose[0], pose[1], pose[2], pose[3],
-                )),
+        // What the writer stores: finite matrices, a unit quaternion (a corrupt record gave
+        // NaN or infinite poses to the mapper; found by the match_file fuzz target).
+        let geometry_at = start as u64 + 24;
+        let invalid = |m: String| FormatError::binary(path, geometry_at, format!("pair {i}: {m}"));
+        for (bit, name, m) in [(1, "F", &f), (2, "E", &e), (4, "H", &h)] {
+            if flags & bit != 0 && !m.iter().all(|x| x.is_finite()) {
+                return Err(invalid(format!("{name} is not finite")));
+            }
+        }
+        let cam2_from_cam1 = if flags & 8 != 0 {
+            let q = Quaternion::new(pose[0], pose[1], pose[2], pose[3]);
+            let norm = q.norm();
+            if !(pose.iter().all(|x| x.is_finite()) && (norm - 1.0).abs() <= 1e-6) {
+                return Err(invalid(format!(
+                    "relative pose {pose:?} is not a unit quaternion and a finite translation"
+                )));
+            }
+            Some(Rigid3::new(
+                UnitQuaternion::new_unchecked(q),
                 Vector3::new(pose[4], pose[5], pose[6]),
-            )
-        });
+            ))
+        } else {
+            None
+        };
         pairs.push(VerifiedPair {
             image1,
             image2,
