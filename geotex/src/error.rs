@@ -1,0 +1,49 @@
+//! What can go wrong in geotex, naming the element or setting at fault.
+
+use fresco_core::MeshError;
+use fresco_core::topology::TopologyError;
+
+/// Why a resize (or one of its stages) could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum GeotexError {
+    #[error("the mesh has no faces")]
+    EmptyMesh,
+    /// The mesh failed [`fresco_core::Mesh::validate`]; the message names the element.
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(MeshError),
+    #[error("invalid mesh: {0}")]
+    Topology(TopologyError),
+    #[error("the mesh has no extent (all vertices coincide)")]
+    NoExtent,
+    /// A setting is out of its range; `field` is its name in the config struct.
+    #[error("{field} is {value}: {expected}")]
+    Config {
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    /// The target scale or size is not usable along `axis`.
+    #[error("{what} along {axis} is {value}: it must be a finite number greater than 0")]
+    Target {
+        what: &'static str,
+        axis: char,
+        value: f64,
+    },
+    /// A sparse factorisation failed (degenerate triangles make the system singular).
+    #[error("{stage}: sparse solve failed ({reason}); degenerate or duplicate triangles?")]
+    Solve { stage: &'static str, reason: String },
+}
+
+impl GeotexError {
+    pub(crate) fn config(
+        field: &'static str,
+        value: impl std::fmt::Display,
+        expected: &'static str,
+    ) -> GeotexError {
+        GeotexError::Config {
+            field,
+            value: value.to_string(),
+            expected,
+        }
+    }
+}
