@@ -259,9 +259,9 @@ pub struct BumpyBoxConfig {
     pub size: [f64; 3],
     /// Target edge length. Default 1/70.
     pub edge: f64,
-    /// Support radius of the big bumps (left patch, square lattice). Default 0.09.
+    /// Support radius of the big bumps (left patch, square lattice). Default 0.08.
     pub big_radius: f64,
-    /// Support radius of the small bumps (right patch, hexagonal lattice). Default 0.055.
+    /// Support radius of the small bumps (right patch, hexagonal lattice). Default 0.05.
     pub small_radius: f64,
 }
 
@@ -270,8 +270,8 @@ impl Default for BumpyBoxConfig {
         BumpyBoxConfig {
             size: [2.0, 1.0, 0.3],
             edge: 1.0 / 70.0,
-            big_radius: 0.09,
-            small_radius: 0.055,
+            big_radius: 0.08,
+            small_radius: 0.05,
         }
     }
 }
@@ -288,36 +288,44 @@ struct BumpPatch {
 }
 
 impl BumpPatch {
+    /// As many bumps as fit in the rectangle `lo`..`hi` on a lattice of spacing
+    /// `2.2 radius` (a gap of a tenth of a diameter), centred in it. The patch (the
+    /// ground-truth region) is the lattice's extent plus half a spacing around it.
     fn new(lo: [f64; 2], hi: [f64; 2], radius: f64, height: f64, hexagonal: bool) -> BumpPatch {
-        let spacing = 2.5 * radius;
+        let spacing = 2.2 * radius;
         let row_step = if hexagonal {
             spacing * 3f64.sqrt() / 2.0
         } else {
             spacing
         };
-        // Centres keep a bump radius clear of the patch edge; the lattice is centred.
-        let inner = [hi[0] - lo[0] - 2.0 * radius, hi[1] - lo[1] - 2.0 * radius];
-        let rows = (inner[1] / row_step).floor() as usize + 1;
+        let inner = [hi[0] - lo[0] - spacing, hi[1] - lo[1] - spacing];
+        let rows = (inner[1] / row_step).floor().max(0.0) as usize + 1;
+        let cols = (inner[0] / spacing).floor().max(0.0) as usize + 1;
+        // Odd rows of a hexagonal lattice are shifted by half a spacing and hold one
+        // bump less, so that every row stays inside the same extent.
+        let width = (cols - 1) as f64 * spacing;
+        let height_rows = (rows - 1) as f64 * row_step;
+        let x0 = 0.5 * (lo[0] + hi[0]) - 0.5 * width;
+        let y0 = 0.5 * (lo[1] + hi[1]) - 0.5 * height_rows;
         let mut centres = Vec::new();
-        let y0 = 0.5 * (lo[1] + hi[1]) - 0.5 * (rows - 1) as f64 * row_step;
         for row in 0..rows {
-            let shift = if hexagonal && row % 2 == 1 {
-                0.5 * spacing
+            let odd = hexagonal && row % 2 == 1;
+            let (shift, count) = if odd {
+                (0.5 * spacing, cols.saturating_sub(1))
             } else {
-                0.0
+                (0.0, cols)
             };
-            let cols = ((inner[0] - shift) / spacing).floor() as usize + 1;
-            let x0 = 0.5 * (lo[0] + hi[0]) - 0.5 * (cols - 1) as f64 * spacing;
-            for col in 0..cols {
-                let x = x0 + col as f64 * spacing;
-                if x + radius <= hi[0] + 1e-12 && x - radius >= lo[0] - 1e-12 {
-                    centres.push([x, y0 + row as f64 * row_step]);
-                }
+            for col in 0..count {
+                centres.push([
+                    x0 + shift + col as f64 * spacing,
+                    y0 + row as f64 * row_step,
+                ]);
             }
         }
+        let half = 0.5 * spacing;
         BumpPatch {
-            lo,
-            hi,
+            lo: [x0 - half, y0 - half],
+            hi: [x0 + width + half, y0 + height_rows + half],
             radius,
             height,
             spacing,
@@ -347,7 +355,7 @@ impl BumpPatch {
 
 /// A closed box whose top carries two patches of bumps (see the module documentation).
 /// Ground-truth labels: 1 for the left patch (big bumps), 2 for the right (small bumps);
-/// a patch is the rectangle its lattice fills, gaps between bumps included.
+/// a patch is the rectangle its lattice fills plus half a spacing, gaps included.
 pub fn bumpy_box(cfg: &BumpyBoxConfig) -> TexturedModel {
     let [sx, sy, sz] = cfg.size;
     let lo = [-0.5 * sx, -0.5 * sy, -0.5 * sz];
@@ -359,7 +367,7 @@ pub fn bumpy_box(cfg: &BumpyBoxConfig) -> TexturedModel {
     ];
     let base_mesh = grid_box(lo, hi, n);
     // Patches leave a margin of 0.1 x size to the box's edges and 0.08 x size between them.
-    let margin_x = 0.05 * sx;
+    let margin_x = 0.1 * sx;
     let margin_y = 0.1 * sy;
     let big = BumpPatch::new(
         [lo[0] + margin_x, lo[1] + margin_y],

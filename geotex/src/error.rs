@@ -29,6 +29,9 @@ pub enum GeotexError {
         axis: char,
         value: f64,
     },
+    /// A picture could not be rendered (the message says why).
+    #[error("picture: {0}")]
+    Picture(String),
     /// A sparse factorisation failed (degenerate triangles make the system singular).
     #[error("{stage}: sparse solve failed ({reason}); degenerate or duplicate triangles?")]
     Solve { stage: &'static str, reason: String },

@@ -7,7 +7,7 @@ use fresco_core::{Mesh, Topology};
 use crate::GeotexError;
 
 /// Neighbours of every vertex through the mesh's unique edges.
-pub(crate) struct VertexGraph {
+pub struct VertexGraph {
     offsets: Vec<u32>,
     neighbours: Vec<u32>,
     /// Length of the edge to each neighbour (parallel to `neighbours`).
@@ -76,19 +76,28 @@ impl VertexGraph {
     /// a part index per vertex (`u32::MAX` for non-members), parts numbered in order of
     /// their lowest vertex.
     pub fn parts(&self, member: impl Fn(usize) -> bool) -> (Vec<u32>, usize) {
+        self.parts_by(|v| member(v).then_some(0))
+    }
+
+    /// Connected parts of the vertices with a `key`, through edges whose ends have the same
+    /// key; numbered as [`Self::parts`].
+    pub fn parts_by(&self, key: impl Fn(usize) -> Option<u32>) -> (Vec<u32>, usize) {
         let n = self.vertex_count();
         let mut part = vec![u32::MAX; n];
         let mut count = 0u32;
         let mut stack = Vec::new();
         for start in 0..n {
-            if part[start] != u32::MAX || !member(start) {
+            if part[start] != u32::MAX {
                 continue;
             }
+            let Some(k) = key(start) else {
+                continue;
+            };
             part[start] = count;
             stack.push(start as u32);
             while let Some(v) = stack.pop() {
                 for &w in self.neighbours(v as usize) {
-                    if part[w as usize] == u32::MAX && member(w as usize) {
+                    if part[w as usize] == u32::MAX && key(w as usize) == Some(k) {
                         part[w as usize] = count;
                         stack.push(w);
                     }
@@ -103,7 +112,7 @@ impl VertexGraph {
 /// Validates the mesh and builds its topology and vertex graph: the common entry of every
 /// stage. Fails on an empty mesh, bad indices, non-finite positions, repeated corners or a
 /// mesh without extent.
-pub(crate) fn prepare(mesh: &Mesh) -> Result<(Topology, VertexGraph), GeotexError> {
+pub fn prepare(mesh: &Mesh) -> Result<(Topology, VertexGraph), GeotexError> {
     if mesh.faces.is_empty() {
         return Err(GeotexError::EmptyMesh);
     }

@@ -2,6 +2,10 @@
 
 pub mod curvature;
 mod error;
-mod graph;
+pub mod fairing;
+pub mod graph;
+pub mod picture;
+pub mod segmentation;
+mod sparse;
 
 pub use error::GeotexError;
