@@ -5,6 +5,7 @@ mod error;
 pub mod fairing;
 pub mod graph;
 pub mod picture;
+pub mod protective_grid;
 pub mod segmentation;
 mod sparse;
 
