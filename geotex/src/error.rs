@@ -1,6 +1,7 @@
 //! What can go wrong in geotex, naming the element or setting at fault.
 
 use fresco_core::MeshError;
+use fresco_core::knn::KnnError;
 use fresco_core::topology::TopologyError;
 
 /// Why a resize (or one of its stages) could not run.
@@ -29,6 +30,9 @@ pub enum GeotexError {
         axis: char,
         value: f64,
     },
+    /// A spatial index could not be built (coordinates beyond single precision).
+    #[error("spatial index: {0}")]
+    Index(KnnError),
     /// A picture could not be rendered (the message says why).
     #[error("picture: {0}")]
     Picture(String),

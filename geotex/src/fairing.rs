@@ -342,8 +342,8 @@ mod tests {
         assert!(rms < 0.004 && max < 0.015, "rms {rms} max {max}");
         // The displacement reproduces the thread profile (amplitude 0.04).
         let mut worst: f64 = 0.0;
-        for v in 0..labels.len() {
-            if labels[v] != 0 {
+        for (v, &label) in labels.iter().enumerate() {
+            if label != 0 {
                 let exact = (model.mesh.positions[v] - model.base_mesh.positions[v]).norm()
                     * (model.mesh.positions[v].coords.xy().norm() - 1.0).signum();
                 worst = worst.max((ex.displacement[v] - exact).abs());
@@ -370,8 +370,8 @@ mod tests {
         let (_, graph) = prepare(&mesh).unwrap();
         let labels = vec![1u32; mesh.positions.len()];
         let (faired, _) = fair(&mesh, &graph, &labels, &FairingConfig::default()).unwrap();
-        for v in 0..mesh.positions.len() {
-            if graph.on_boundary[v] {
+        for (v, &boundary) in graph.on_boundary.iter().enumerate() {
+            if boundary {
                 assert_eq!(faired[v], mesh.positions[v]);
             }
         }

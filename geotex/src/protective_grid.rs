@@ -348,8 +348,8 @@ pub fn optimise(
         }
         for a in 0..3 {
             rhs[nf + a] = if extent[a] > 0.0 { size[a] } else { widths[a] };
-            for t in 0..m {
-                if let Some(value) = held[t]
+            for (t, held_t) in held.iter().enumerate().take(m) {
+                if let Some(value) = *held_t
                     && axis_of(t) == a
                 {
                     rhs[nf + a] -= value * widths[a];

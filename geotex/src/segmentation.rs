@@ -317,8 +317,8 @@ pub(crate) fn mean_shift(samples: &[Feature], max_iterations: usize) -> Vec<Feat
                     }
                     let (kp, kq, kt) = (1.0 - dp, 1.0 - dq, 1.0 - dt);
                     let (wp, wq, wt) = (kq * kt, kp * kt, kp * kq);
-                    for a in 0..3 {
-                        acc_p[a] += wp * s.p[a];
+                    for (acc, p) in acc_p.iter_mut().zip(s.p.iter()) {
+                        *acc += wp * p;
                     }
                     for a in 0..2 {
                         acc_q[a] += wq * s.q[a];
@@ -389,13 +389,13 @@ pub(crate) fn merge_modes(modes: &[Feature]) -> (Vec<u32>, usize) {
     let mut id = vec![u32::MAX; modes.len()];
     let mut cluster = vec![0u32; modes.len()];
     let mut count = 0u32;
-    for i in 0..modes.len() {
+    for (i, c) in cluster.iter_mut().enumerate() {
         let root = sets.find(i as u32) as usize;
         if id[root] == u32::MAX {
             id[root] = count;
             count += 1;
         }
-        cluster[i] = id[root];
+        *c = id[root];
     }
     (cluster, count as usize)
 }

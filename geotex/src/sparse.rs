@@ -35,8 +35,7 @@ impl SymmetricMatrix {
     pub fn factor(mut self, stage: &'static str) -> Result<Factor, GeotexError> {
         let fail = |reason: String| GeotexError::Solve { stage, reason };
         // Sorted and summed in a fixed order: the same bits whatever the assembly threads.
-        self.entries
-            .sort_unstable_by(|a, b| (a.1, a.0).cmp(&(b.1, b.0)));
+        self.entries.sort_unstable_by_key(|a| (a.1, a.0));
         let mut triplets: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(self.entries.len());
         for &(r, c, v) in &self.entries {
             match triplets.last_mut() {
