@@ -21,7 +21,7 @@
 #        NO_BUILD=1 ...  (binaries already in target/release)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh opencv)}
 QUICK=${QUICK:-0}
 RUNS=${1:-$([ "$QUICK" = 1 ] && echo 2 || echo 5)}
 if [ "${NO_BUILD:-0}" != 1 ]; then

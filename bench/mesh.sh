@@ -15,7 +15,7 @@
 # (decimate_bench example) against Open3D's simplify_quadric_decimation on the same mesh,
 # time and Hausdorff / Chamfer distance of each output to the input (same metric).
 #
-#   bench/mesh.sh                                    # needs open3d (PYTHON, default /work/venv)
+#   bench/mesh.sh                                    # Open3D from bench/.venv (bench/venv.sh; or PYTHON=...)
 #   RUNS=5 DEPTH=9 POINTS=200000 SHAPES="sphere torus blob" bench/mesh.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,7 +24,7 @@ DEPTH=${DEPTH:-9}
 POINTS=${POINTS:-200000}
 FACES=${FACES:-200000}
 SHAPES=${SHAPES:-"sphere torus blob"}
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh open3d)}
 OUT=bench/out/mesh
 mkdir -p "$OUT"
 cargo build --release -p fresco

@@ -22,7 +22,7 @@ RUNS=${RUNS:-3}
 if [ "${QUICK:-0}" = 1 ]; then RUNS=1; fi
 ATLAS=${ATLAS:-1024}
 GUTTER=${GUTTER:-2}
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh xatlas)}
 EX=target/release/examples
 OUT=bench/out/param
 mkdir -p "$OUT"

@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 N=${1:-3163}
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh plyfile)}
 OUT=bench/out/ply_stream
 mkdir -p "$OUT"
 cargo build --release -q -p fresco-core --example ply_stream

@@ -18,7 +18,7 @@
 #   QUICK=1 bench/poisson.sh                          # depth 8, 1 run per cell (~5 min quiet)
 #   RUNS=5 SHAPES="sphere torus" DEPTHS=9 VARIANTS=clean bench/poisson.sh
 #   SEED=3 QUICK=1 SHAPES=torus bench/poisson.sh      # another draw of the clouds (default 7)
-#   PYTHON=/path/to/python bench/poisson.sh           # needs open3d (default /work/venv)
+#   PYTHON=/path/to/python bench/poisson.sh           # Open3D from bench/.venv (bench/venv.sh)
 #   Then the ignored heavy surface tests run in release (IGNORED_TESTS=0 skips them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,7 +32,7 @@ DEPTHS=${DEPTHS:-"8 9"}
 VARIANTS=${VARIANTS:-"clean noisy holes"}
 POINTS=${POINTS:-200000}
 SEED=${SEED:-7}
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh open3d)}
 OUT=bench/out/poisson
 mkdir -p "$OUT"
 cargo build --release -p fresco-surface --example poisson_bench

@@ -22,7 +22,7 @@
 # /dev/shm (removed at the end); the tables are printed at the end.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh open3d)}
 RUNS=${RUNS:-3}
 if [[ -n ${QUICK:-} ]]; then
     SIZES=${SIZES:-10000000}

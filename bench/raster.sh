@@ -4,12 +4,12 @@
 # Open3D's RaycastingScene (Embree) casting one ray per pixel centre of the same view.
 # Runs interleaved fresco / Open3D, 5 each, and prints medians and ratios.
 #
-#   bench/raster.sh            # needs Open3D in /work/venv (or PYTHON=/path/to/python)
+#   bench/raster.sh            # Open3D from bench/.venv (bench/venv.sh; or PYTHON=/path/to/python)
 #   RUNS=7 bench/raster.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RUNS=${RUNS:-5}
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh open3d)}
 OUT=bench/out/raster
 mkdir -p "$OUT"
 cargo build --release -p fresco-datasets --example raster_bench

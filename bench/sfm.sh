@@ -17,7 +17,7 @@
 #   NO_BUILD=1 RUNS=5 bench/sfm.sh whole
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh colmap)}
 WHAT=${1:-all}
 RUNS=${RUNS:-3}
 if [ "${QUICK:-0}" = 1 ]; then RUNS=1; fi

@@ -19,7 +19,7 @@
 #        NO_BUILD=1 ...           (use the binaries already in target/release)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh opencv)}
 QUICK=${QUICK:-0}
 RUNS=${RUNS:-$([ "$QUICK" = 1 ] && echo 1 || echo 3)}
 PER_IMAGE_RUNS=${PER_IMAGE_RUNS:-5}

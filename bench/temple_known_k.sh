@@ -5,7 +5,7 @@
 # scored by `fresco eval poses` against templeSR_par.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh colmap)}
 OUT=bench/out/temple_known_k
 rm -rf "$OUT" && mkdir -p "$OUT"
 cargo build --release -p fresco

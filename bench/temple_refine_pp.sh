@@ -6,7 +6,7 @@
 # 302.8, 247.4 in COLMAP's pixel convention).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PYTHON=${PYTHON:-/work/venv/bin/python}
+PYTHON=${PYTHON:-$(bench/venv.sh colmap)}
 OUT=bench/out/temple_refine_pp
 rm -rf "$OUT" && mkdir -p "$OUT"
 if [ "${NO_BUILD:-0}" != 1 ]; then cargo build --release -p fresco; fi

@@ -4,6 +4,7 @@
 //! Every subcommand returns a JSON summary; `--json` prints it on stdout, otherwise a short
 //! human-readable form is printed. Logs go to stderr (`-v`, `RUST_LOG`).
 
+mod dense;
 mod eval;
 mod features;
 mod matching;
@@ -11,9 +12,14 @@ mod mesh;
 mod progress;
 mod pst;
 mod reconstruct;
+mod report;
+mod run;
 mod sfm;
+mod sprites;
 mod synth;
+mod texture;
 mod unwrap;
+mod view;
 
 use std::process::ExitCode;
 
@@ -42,28 +48,42 @@ struct Cli {
     command: Command,
 }
 
+/// The verbs, in pipeline order (`fresco --help` lists them so; cli/tests/error_messages.rs
+/// holds the same order): the photo pipeline's stages, then the tools around them.
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
-    /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
-    Synth(synth::SynthArgs),
-    /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
-    /// density trimming, clean-up and decimation.
-    Mesh(mesh::MeshArgs),
-    /// Point-sampled textures for meshes too large for memory.
-    Pst(pst::PstArgs),
+    /// Photos to a textured model.glb in one go, resumable, with report.html and summary.json.
+    Run(run::RunArgs),
+    /// SIFT features of a folder of photos into a workspace (feature files, images.json).
+    Features(features::FeaturesArgs),
     /// Match the features of a workspace's images and verify the pairs' two-view geometry.
     Match(matching::MatchArgs),
     /// Cameras and a sparse point cloud from a workspace's features and matches.
     Sfm(sfm::SfmArgs),
-    /// Measure results against ground truth or a reference (poses).
-    Eval(eval::EvalArgs),
     /// Photos to cameras and sparse points in one go: features, match, sfm.
     Reconstruct(reconstruct::ReconstructArgs),
-    /// SIFT features of a folder of photos into a workspace (feature files, images.json).
-    Features(features::FeaturesArgs),
+    /// Depth maps of every registered photo and their fusion into <ws>/dense/fused.ply
+    /// (PatchMatch multi-view stereo on the CPU).
+    Dense(dense::DenseArgs),
+    /// Oriented points (<ws>/dense/fused.ply or --points) to <ws>/mesh.ply: screened Poisson,
+    /// density trimming, clean-up and decimation.
+    Mesh(mesh::MeshArgs),
     /// Charts, flattens and packs a mesh's texture coordinates (with a PNG of the atlas).
     Unwrap(unwrap::UnwrapArgs),
+    /// The texture atlas of a mesh from its photos: graph-cut view fusion, leveling, hole
+    /// filling; <ws>/texture/ and <ws>/model.glb.
+    Texture(texture::TextureArgs),
+    /// Measure results against ground truth or a reference (poses).
+    Eval(eval::EvalArgs),
+    /// Serve a workspace's report and model viewer (or a .glb) on 127.0.0.1.
+    View(view::ViewArgs),
+    /// Point-sampled textures for meshes too large for memory.
+    Pst(pst::PstArgs),
+    /// Texture sprites: render or bake a sprite scene, build octree textures.
+    Sprites(sprites::SpritesArgs),
+    /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
+    /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
+    Synth(synth::SynthArgs),
 }
 
 /// Everything a subcommand needs from the global flags.
@@ -88,15 +108,20 @@ fn main() -> ExitCode {
         json: cli.json,
     };
     let result: anyhow::Result<serde_json::Value> = match cli.command {
-        Command::Synth(args) => synth::run(args, &ctx),
-        Command::Pst(args) => pst::run(args, &ctx),
-        Command::Mesh(args) => mesh::run(args, &ctx),
+        Command::Run(args) => run::run(args, &ctx),
+        Command::Features(args) => features::run(args, &ctx),
         Command::Match(args) => matching::run(args, &ctx),
         Command::Sfm(args) => sfm::run(args, &ctx),
-        Command::Eval(args) => eval::run(args, &ctx),
         Command::Reconstruct(args) => reconstruct::run(args, &ctx),
-        Command::Features(args) => features::run(args, &ctx),
+        Command::Dense(args) => dense::run(args, &ctx),
+        Command::Mesh(args) => mesh::run(args, &ctx),
         Command::Unwrap(args) => unwrap::run(args, &ctx),
+        Command::Texture(args) => texture::run(args, &ctx),
+        Command::Eval(args) => eval::run(args, &ctx),
+        Command::View(args) => view::run(args, &ctx),
+        Command::Pst(args) => pst::run(args, &ctx),
+        Command::Sprites(args) => sprites::run(args, &ctx),
+        Command::Synth(args) => synth::run(args, &ctx),
     };
     match result {
         Ok(summary) => {

@@ -52,7 +52,8 @@ pub fn run(args: MatchArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     if !(args.max_error > 0.0 && args.max_error.is_finite()) {
         bail!("--max-error must be positive, got {}", args.max_error);
     }
-    let list = read_images(ws).with_context(|| format!("reading workspace {}", ws.display()))?;
+    // The error names the file (images.json): the context does not name the folder again.
+    let list = read_images(ws).context("reading the workspace")?;
     let features = list
         .images
         .iter()

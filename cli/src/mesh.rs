@@ -1,12 +1,15 @@
 //! `fresco mesh <ws>`: oriented points to `<ws>/mesh.ply` through
-//! `fresco_surface::pipeline::mesh_from_points` (Poisson, trimming, clean-up, decimation).
+//! `fresco_surface::pipeline::mesh_from_points` (Poisson, trimming, clean-up, decimation,
+//! orientation towards the workspace's cameras when it has a model).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use clap::Args;
+use fresco_core::colmap;
 use fresco_core::nalgebra::{Point3, Vector3};
 use fresco_core::ply::{PlyFormat, PlyReader, write_mesh};
+use fresco_core::{CamFromWorld, Camera};
 use fresco_surface::pipeline::{MeshConfig, mesh_from_points};
 use fresco_surface::trim::TrimConfig;
 
@@ -18,10 +21,10 @@ pub struct MeshArgs {
     #[arg(long)]
     pub points: Option<PathBuf>,
     /// Octree depth of the Poisson reconstruction (2-12).
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = MeshConfig::default().poisson.depth)]
     pub depth: u32,
     /// Screening weight of the samples (PoissonRecon's --pointWeight).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = MeshConfig::default().poisson.point_weight)]
     pub point_weight: f64,
     /// Trim the surface where the sampling density (PoissonRecon's log4 scale) is below this
     /// absolute value (0 keeps everything). Without it, --trim-below-median applies.
@@ -29,10 +32,10 @@ pub struct MeshArgs {
     pub trim: Option<f32>,
     /// Trim where the density is this far below the median vertex density (1: a quarter of
     /// the typical sampling density), whatever the point count and depth.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = default_below_median())]
     pub trim_below_median: f32,
     /// Face budget of the output (0 keeps every face).
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, default_value_t = MeshConfig::default().target_faces.unwrap_or(0))]
     pub faces: usize,
     /// Fail on points without normals instead of estimating them.
     #[arg(long)]
@@ -40,6 +43,21 @@ pub struct MeshArgs {
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     pub ascii: bool,
+    /// The cameras the points were photographed from (a COLMAP model folder); the mesh is
+    /// turned to face them. Default: <ws>/dense/sparse, else <ws>/sparse/0, if present.
+    #[arg(long)]
+    pub cameras: Option<PathBuf>,
+    /// Keep the orientation Poisson gives, even when cameras are known.
+    #[arg(long)]
+    pub no_orient: bool,
+}
+
+/// The library's default trimming, relative to the median density.
+fn default_below_median() -> f32 {
+    MeshConfig::default()
+        .trim
+        .and_then(|t| t.below_median)
+        .expect("MeshConfig trims relative to the median by default")
 }
 
 pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -74,6 +92,7 @@ pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::V
         target_faces: (args.faces > 0).then_some(args.faces),
         ..MeshConfig::default()
     };
+    cfg.cameras = cameras(&args)?;
     cfg.poisson.depth = args.depth;
     cfg.poisson.point_weight = args.point_weight;
     let bars = crate::progress::Bars::new(ctx);
@@ -91,6 +110,35 @@ pub fn run(args: MeshArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::V
         map.insert("output".into(), output.display().to_string().into());
     }
     Ok(summary)
+}
+
+/// The cameras of `--cameras` or of the workspace's model (dense first), unless --no-orient.
+fn cameras(args: &MeshArgs) -> anyhow::Result<Vec<(Camera, CamFromWorld)>> {
+    if args.no_orient {
+        return Ok(Vec::new());
+    }
+    let dir = match &args.cameras {
+        Some(dir) => dir.clone(),
+        None => {
+            let found = [
+                args.workspace.join("dense").join("sparse"),
+                args.workspace.join("sparse").join("0"),
+            ]
+            .into_iter()
+            .find(|d| colmap::detect_format(d).is_ok());
+            match found {
+                Some(dir) => dir,
+                None => return Ok(Vec::new()),
+            }
+        }
+    };
+    let rec = colmap::read_model(&dir)
+        .with_context(|| format!("reading the cameras of {}", dir.display()))?;
+    Ok(rec
+        .images
+        .values()
+        .filter_map(|im| Some((rec.cameras.get(&im.camera_id)?.clone(), im.cam_from_world)))
+        .collect())
 }
 
 /// Points and, if the file has them, their normals.

@@ -46,13 +46,13 @@ struct SampleArgs {
     /// Input PLY (binary or ascii; mesh or point cloud).
     input: PathBuf,
     /// Target number of samples.
-    #[arg(short, long, default_value_t = 100_000)]
+    #[arg(short, long, default_value_t = SamplingConfig::default().target)]
     n: u64,
     /// Adaptivity alpha (samples per 1-node; 0 = uniform).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = SamplingConfig::default().alpha)]
     alpha: f64,
     /// Position rule: centroid or quadric.
-    #[arg(long, default_value = "centroid")]
+    #[arg(long, default_value_t = position_name(SamplingConfig::default().position).to_string())]
     position: String,
     /// Keep the paper's plain sub-grid sizes (no correction towards n).
     #[arg(long)]
@@ -78,7 +78,7 @@ struct PaintArgs {
     /// JSON ops file.
     ops: PathBuf,
     /// Neighbourhood size of the PST (colours of refined samples).
-    #[arg(short, default_value_t = 8)]
+    #[arg(short, default_value_t = FieldConfig::default().k)]
     k: usize,
 }
 
@@ -98,7 +98,7 @@ struct RefineArgs {
     /// Keep every input point of the region.
     #[arg(long)]
     full: bool,
-    #[arg(short, default_value_t = 8)]
+    #[arg(short, default_value_t = FieldConfig::default().k)]
     k: usize,
 }
 
@@ -123,7 +123,7 @@ struct ExportOctreeArgs {
     /// Maximum depth.
     #[arg(long, default_value_t = 8)]
     depth: u32,
-    #[arg(short, default_value_t = 8)]
+    #[arg(short, default_value_t = FieldConfig::default().k)]
     k: usize,
 }
 
@@ -137,13 +137,13 @@ struct ApplyArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Neighbourhood size of the PST.
-    #[arg(short, default_value_t = 8)]
+    #[arg(short, default_value_t = FieldConfig::default().k)]
     k: usize,
     /// Singular (feature-preserving) kernel with this power instead of the Hermite decay.
     #[arg(long)]
     singular: Option<f32>,
     /// Channel written as colour.
-    #[arg(long, default_value = "rgb")]
+    #[arg(long, default_value_t = ApplyConfig::default().channel)]
     channel: String,
     /// Write ascii instead of binary.
     #[arg(long)]
@@ -171,7 +171,7 @@ struct LookupsArgs {
     /// Number of lookups (at most the file's vertex count with --points).
     #[arg(long, default_value_t = 10_000_000)]
     count: usize,
-    #[arg(short, default_value_t = 8)]
+    #[arg(short, default_value_t = FieldConfig::default().k)]
     k: usize,
     /// Lookups compared with a brute-force evaluation.
     #[arg(long, default_value_t = 2000)]
@@ -182,10 +182,11 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
     let bars = Bars::new(ctx);
     match args.command {
         PstCommand::Sample(a) => {
-            let position = match a.position.as_str() {
-                "centroid" => PositionRule::Centroid,
-                "quadric" => PositionRule::Quadric,
-                other => bail!("--position must be centroid or quadric, not {other}"),
+            let Some(position) = [PositionRule::Centroid, PositionRule::Quadric]
+                .into_iter()
+                .find(|&p| position_name(p) == a.position)
+            else {
+                bail!("--position must be centroid or quadric, not {}", a.position);
             };
             let source = PlyPoints::open(&a.input)?;
             let cfg = CreateConfig {
@@ -275,7 +276,9 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
             let field = fresco_pst::Field::new(&all, field_config(a.k, None)?);
             let tex = fresco_pst::octree_texture::OctreeTexture::from_field(&field, a.depth)?;
             tex.save(&a.output)?;
-            Ok(json!({ "output": a.output, "nodes": tex.children.len(), "depth": a.depth }))
+            Ok(
+                json!({ "output": a.output, "nodes": tex.pool.used_nodes(), "texels": tex.texels, "depth": a.depth }),
+            )
         }
         PstCommand::Apply(a) => {
             let pst = Pst::open(&a.pst)?;
@@ -355,15 +358,24 @@ pub fn run(args: PstArgs, ctx: &Context) -> anyhow::Result<serde_json::Value> {
     }
 }
 
-fn field_config(k: usize, singular: Option<f32>) -> anyhow::Result<FieldConfig> {
-    if k == 0 {
-        bail!("-k must be at least 1");
+/// The name of a position rule on the command line.
+fn position_name(rule: PositionRule) -> &'static str {
+    match rule {
+        PositionRule::Centroid => "centroid",
+        PositionRule::Quadric => "quadric",
     }
-    Ok(FieldConfig {
+}
+
+/// The PST settings of `-k` and `--singular`, checked by the library (`Field::new`, which the
+/// export and lookups call, takes any `k`).
+fn field_config(k: usize, singular: Option<f32>) -> anyhow::Result<FieldConfig> {
+    let cfg = FieldConfig {
         k,
         kernel: match singular {
             Some(power) => Kernel::Singular { power },
             None => Kernel::Hermite,
         },
-    })
+    };
+    cfg.check()?;
+    Ok(cfg)
 }

@@ -59,7 +59,7 @@ pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
     config.mapper.init_min_inliers = args.init_min_inliers;
     config.mapper.bundle.refine_principal_point = args.refine_principal_point;
     let bars = crate::progress::Bars::new(ctx);
-    let summary = run_sfm(&args.workspace, &config, &bars)
-        .with_context(|| format!("sfm on {}", args.workspace.display()))?;
+    // Every SfmError names the workspace or the file at fault: the context does not repeat it.
+    let summary = run_sfm(&args.workspace, &config, &bars).context("structure from motion")?;
     Ok(serde_json::to_value(summary)?)
 }

@@ -16,28 +16,28 @@ pub struct SynthArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Number of photos.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = SceneConfig::default().views)]
     pub views: u32,
     /// Image size in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "640x480")]
+    #[arg(long, default_value_t = default_size())]
     pub size: String,
     /// Seed of the albedo, camera perturbations, exposures and surface samples.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = SceneConfig::default().seed)]
     pub seed: u64,
     /// Camera layout: ring (at --elevation degrees) or hemisphere.
-    #[arg(long, default_value = "ring")]
+    #[arg(long, default_value_t = SceneConfig::default().layout.name().to_string())]
     pub layout: String,
     /// Ring elevation in degrees.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = SceneConfig::default().elevation_deg)]
     pub elevation: f64,
     /// Radial distortion coefficient k1 of a SIMPLE_RADIAL camera (0: SIMPLE_PINHOLE).
-    #[arg(long, default_value_t = -0.03, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = default_k1(), allow_negative_numbers = true)]
     pub distortion: f64,
     /// Focal length in pixels (default 1.2 times the longer image side).
     #[arg(long)]
     pub focal: Option<f64>,
     /// Mesh resolution (0 coarse; each step about 4x the faces).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = SceneConfig::default().detail)]
     pub detail: u32,
     /// Surround the object with a textured box (floor and walls) instead of a plain background.
     #[arg(long)]
@@ -48,6 +48,21 @@ pub struct SynthArgs {
     /// Each photo's exposure is multiplied by a factor drawn in 1 +- this.
     #[arg(long, default_value_t = SceneConfig::default().exposure_jitter)]
     pub exposure_jitter: f64,
+}
+
+/// The library's default image size as `WIDTHxHEIGHT`.
+fn default_size() -> String {
+    let c = SceneConfig::default();
+    format!("{}x{}", c.width, c.height)
+}
+
+/// The library's default distortion coefficient (0 when it has none).
+fn default_k1() -> f64 {
+    match SceneConfig::default().distortion {
+        Distortion::SimpleRadial { k } => k,
+        Distortion::Radial { k1, .. } => k1,
+        Distortion::None => 0.0,
+    }
 }
 
 pub fn run(args: SynthArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {

@@ -19,16 +19,16 @@ pub struct UnwrapArgs {
     #[arg(short, long, required_unless_present = "measure")]
     pub output: Option<PathBuf>,
     /// Atlas width and height in texels.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = UnwrapConfig::default().atlas_size)]
     pub atlas: u32,
     /// Texels between charts and from the atlas border.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = UnwrapConfig::default().gutter)]
     pub gutter: u32,
     /// Texels per world unit (default: the density that fills one atlas).
     #[arg(long)]
     pub texels_per_unit: Option<f64>,
     /// Charts whose L2 stretch stays above this are split.
-    #[arg(long, default_value_t = 1.02)]
+    #[arg(long, default_value_t = UnwrapConfig::default().max_stretch)]
     pub max_stretch: f64,
     /// Start from the Reeb-graph segmentation instead of connected components.
     #[arg(long)]

@@ -481,3 +481,161 @@ fn encode_png(image: &image::RgbImage, index: usize) -> Result<Vec<u8>, GlbError
         })?;
     Ok(png)
 }
+
+/// Reads a GLB written by [`write_glb`] (or any GLB with triangle primitives, embedded
+/// images and the attributes fresco writes) back into a [`Mesh`] and its texture images:
+/// primitives are concatenated, `TEXCOORD_0` becomes corner UVs, each primitive's base
+/// colour image becomes its faces' `face_textures` entry (when the file has images),
+/// `COLOR_0` (linear) becomes sRGB vertex colours. Node transforms are not applied (fresco
+/// writes none).
+pub fn read_glb(path: &Path) -> Result<(Mesh, Vec<image::RgbImage>), FormatError> {
+    let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, e))?;
+    let bad = |m: String| FormatError::invalid(path, m);
+    let doc = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid GLB: {e}")))?;
+    let blob = doc.blob.as_deref().unwrap_or_default();
+    let mut textures = Vec::new();
+    for (i, im) in doc.images().enumerate() {
+        let gltf::image::Source::View { view, .. } = im.source() else {
+            return Err(bad(format!("image {i} is not embedded in the GLB")));
+        };
+        let data = blob
+            .get(view.offset()..view.offset() + view.length())
+            .ok_or_else(|| bad(format!("image {i} lies outside the binary chunk")))?;
+        let img = image::load_from_memory(data)
+            .map_err(|e| bad(format!("image {i} does not decode: {e}")))?;
+        textures.push(img.into_rgb8());
+    }
+    let mut mesh = Mesh::default();
+    let (mut uvs, mut colors, mut face_textures) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut any_uv, mut any_color) = (false, false);
+    for gmesh in doc.meshes() {
+        for prim in gmesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                continue;
+            }
+            let reader = prim.reader(|b| (b.index() == 0).then_some(blob));
+            let base = mesh.positions.len() as u32;
+            let positions: Vec<[f32; 3]> = reader
+                .read_positions()
+                .ok_or_else(|| bad("a primitive has no POSITION".into()))?
+                .collect();
+            let n = positions.len();
+            mesh.positions.extend(
+                positions
+                    .iter()
+                    .map(|p| nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+            );
+            let vertex_uv: Option<Vec<[f32; 2]>> =
+                reader.read_tex_coords(0).map(|t| t.into_f32().collect());
+            let vertex_color: Option<Vec<[f32; 3]>> =
+                reader.read_colors(0).map(|c| c.into_rgb_f32().collect());
+            any_uv |= vertex_uv.is_some();
+            any_color |= vertex_color.is_some();
+            colors.extend((0..n).map(|v| {
+                vertex_color
+                    .as_ref()
+                    .map_or([128; 3], |c| c[v].map(linear_to_srgb))
+            }));
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..n as u32).collect(),
+            };
+            let texture = prim
+                .material()
+                .pbr_metallic_roughness()
+                .base_color_texture()
+                .map_or(0, |t| t.texture().source().index() as u32);
+            for tri in indices.chunks_exact(3) {
+                if tri.iter().any(|&v| v as usize >= n) {
+                    return Err(bad("an index is out of range".into()));
+                }
+                mesh.faces
+                    .push([tri[0] + base, tri[1] + base, tri[2] + base]);
+                uvs.push(
+                    [tri[0], tri[1], tri[2]]
+                        .map(|v| vertex_uv.as_ref().map_or([0.0; 2], |t| t[v as usize])),
+                );
+                face_textures.push(texture);
+            }
+        }
+    }
+    if mesh.faces.is_empty() {
+        return Err(bad("no triangles".into()));
+    }
+    if any_uv {
+        mesh.corner_uvs = Some(uvs);
+        if textures.len() > 1 {
+            mesh.face_textures = Some(face_textures);
+        }
+    }
+    if any_color {
+        mesh.colors = Some(colors);
+    }
+    Ok((mesh, textures))
+}
+
+/// The sRGB transfer function: linear [0, 1] to 8-bit sRGB.
+fn linear_to_srgb(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+#[cfg(test)]
+mod read_tests {
+    use super::*;
+
+    #[test]
+    fn a_written_textured_mesh_reads_back_with_its_uvs_colours_and_texture() {
+        let mut mesh = Mesh::from_triangles(
+            vec![
+                nalgebra::Point3::new(0.0, 0.0, 0.0),
+                nalgebra::Point3::new(1.0, 0.0, 0.0),
+                nalgebra::Point3::new(0.0, 1.0, 0.0),
+                nalgebra::Point3::new(0.0, 0.0, 1.0),
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        );
+        let nf = mesh.faces.len();
+        mesh.corner_uvs = Some(
+            (0..nf)
+                .map(|f| {
+                    let u = f as f32 / nf as f32;
+                    [[u, 0.25], [u + 0.01, 0.5], [u, 0.75]]
+                })
+                .collect(),
+        );
+        mesh.colors = Some(vec![[10, 128, 250]; mesh.positions.len()]);
+        let texture =
+            image::RgbImage::from_fn(8, 4, |x, y| image::Rgb([x as u8 * 20, y as u8 * 50, 7]));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.glb");
+        write_glb(&path, &mesh, std::slice::from_ref(&texture)).unwrap();
+        let (back, textures) = read_glb(&path).unwrap();
+        assert_eq!(textures, vec![texture]);
+        assert_eq!(back.faces.len(), nf);
+        let uvs = back.corner_uvs.as_ref().unwrap();
+        let written = mesh.corner_uvs.as_ref().unwrap();
+        for (f, (tri, uv)) in back.faces.iter().zip(uvs).enumerate() {
+            for c in 0..3 {
+                let w = mesh.faces[f][c] as usize;
+                assert_eq!(
+                    back.positions[tri[c] as usize].cast::<f32>(),
+                    mesh.positions[w].cast::<f32>()
+                );
+                assert_eq!(uv[c], written[f][c]);
+            }
+        }
+        assert!(
+            back.colors
+                .as_ref()
+                .unwrap()
+                .iter()
+                .all(|c| *c == [10, 128, 250])
+        );
+    }
+}

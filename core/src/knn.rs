@@ -363,22 +363,18 @@ impl<const K: usize> FeatureIndex<K> {
 mod tests {
     use super::*;
 
-    /// SplitMix64: a tiny deterministic generator for test points.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::Rng;
 
     fn cloud(n: usize, offset: f64, seed: u64) -> Vec<Point3<f64>> {
-        let mut r = Rng(seed);
+        let mut r = Rng::new(seed);
         (0..n)
-            .map(|_| Point3::new(offset + r.next(), offset - r.next(), 2.0 * r.next()))
+            .map(|_| {
+                Point3::new(
+                    offset + r.uniform(),
+                    offset - r.uniform(),
+                    2.0 * r.uniform(),
+                )
+            })
             .collect()
     }
 
@@ -568,11 +564,13 @@ mod tests {
 
     #[test]
     fn two_dimensional_index_matches_brute_force() {
-        let mut r = Rng(9);
-        let points: Vec<Point2<f64>> = (0..2000).map(|_| Point2::new(r.next(), r.next())).collect();
+        let mut r = Rng::new(9);
+        let points: Vec<Point2<f64>> = (0..2000)
+            .map(|_| Point2::new(r.uniform(), r.uniform()))
+            .collect();
         let index = PointIndex2::build(&points).unwrap();
         for _ in 0..100 {
-            let q = Point2::new(r.next(), r.next());
+            let q = Point2::new(r.uniform(), r.uniform());
             let got = index.k_nearest(&q, 7);
             let mut want: Vec<f64> = points.iter().map(|p| (p - q).norm()).collect();
             want.sort_by(f64::total_cmp);

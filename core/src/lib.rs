@@ -12,20 +12,25 @@
 //! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - `ordered_sum.rs`: parallel sums with the same bits whatever the thread count.
 //! - [`Rng`] (`rng.rs`): the one seeded random generator (SplitMix64); every stage draws from it.
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
 //! - [`FormatError`] (`error.rs`): what was wrong with a file and where; `atomic_file.rs`:
 //!   outputs written under a temporary name, then renamed.
+//! - [`ConfigError`] (`config.rs`): the one "invalid configuration" error every stage's
+//!   `Config::check()` returns, and the test that keeps documented defaults true.
 
 pub mod atomic_file;
 pub mod camera;
 pub mod colmap;
+pub mod config;
 pub mod error;
 pub mod gltf;
 pub mod knn;
 pub mod mesh;
 pub mod middlebury;
 pub mod obj;
+pub mod ordered_sum;
 pub mod photo;
 pub mod ply;
 pub mod pose;
@@ -36,6 +41,7 @@ pub mod rng;
 pub mod topology;
 
 pub use camera::{Camera, CameraError, CameraModel, Pixel};
+pub use config::ConfigError;
 pub use error::FormatError;
 pub use mesh::{Aabb, Mesh, MeshError};
 pub use pose::{CamFromWorld, Rigid3, Sim3, WorldFromCam};

@@ -823,13 +823,8 @@ mod tests {
     #[test]
     fn weld_matches_brute_force() {
         // Random points on a coarse lattice with jitter: compare with an O(n^2) greedy weld.
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64) / (1u64 << 53) as f64
-        };
+        let mut rng = crate::Rng::new(12345);
+        let mut rnd = || rng.uniform();
         let pts: Vec<Point3<f64>> = (0..2000)
             .map(|_| {
                 Point3::new(

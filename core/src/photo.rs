@@ -16,11 +16,11 @@ use image::{DynamicImage, ImageDecoder, ImageReader, RgbImage};
 /// Why a photo could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum PhotoError {
-    #[error("{path}: cannot read: {source}")]
+    /// The OS error is part of the message, so it is not also the `source` (see `FormatError`).
+    #[error("{path}: cannot read: {error}")]
     Unreadable {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{path}: the file is empty (0 bytes)")]
     EmptyFile { path: PathBuf },
@@ -111,9 +111,9 @@ impl Photo {
 
 /// Reads and decodes the photo at `path` (format guessed from its bytes, not its extension).
 pub fn load_photo(path: &Path) -> Result<Photo, PhotoError> {
-    let bytes = std::fs::read(path).map_err(|source| PhotoError::Unreadable {
+    let bytes = std::fs::read(path).map_err(|error| PhotoError::Unreadable {
         path: path.to_path_buf(),
-        source,
+        error,
     })?;
     decode_photo(&bytes, path)
 }

@@ -34,6 +34,7 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::camera::{Camera, Pixel};
+use crate::config::{ConfigError, require};
 use crate::{CamFromWorld, Mesh};
 
 /// Face id of a pixel that sees no face.
@@ -52,13 +53,26 @@ const BLOCKS_PER_TILE: usize = BLOCKS_PER_SIDE * BLOCKS_PER_SIDE;
 #[derive(Clone, Debug, PartialEq)]
 pub struct RasterConfig {
     /// Surface points closer than this to the camera plane (camera-frame `z`, world units)
-    /// are clipped. Default 1e-6: only excludes points at (or behind) the camera centre.
+    /// are clipped; finite and > 0. Default: `1e-6` (only excludes points at, or behind, the
+    /// camera centre).
     pub near: f64,
-    /// Skip faces seen from behind (their vertices clockwise in the image). Default false:
-    /// visibility is then correct for open and inconsistently oriented meshes too.
+    /// Skip faces seen from behind (their vertices clockwise in the image). Default: `false`
+    /// (visibility is then correct for open and inconsistently oriented meshes too).
     pub cull_backfaces: bool,
-    /// Colour of pixels (or samples) that see no face. Default black.
+    /// Colour of pixels (or samples) that see no face. Default: `[0, 0, 0]` (black).
     pub background: [u8; 3],
+}
+
+impl RasterConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.near.is_finite() && self.near > 0.0,
+            "near",
+            self.near,
+            "finite and > 0",
+        )
+    }
 }
 
 impl Default for RasterConfig {
@@ -113,6 +127,8 @@ pub enum RasterError {
     EmptyTexture { index: usize },
     #[error("supersampling factor {0} is outside 1..=8")]
     Supersample(u32),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Depth and face id per pixel.
@@ -354,6 +370,7 @@ pub fn visibility(
     cam_from_world: &CamFromWorld,
     config: &RasterConfig,
 ) -> Result<Visibility, RasterError> {
+    config.check()?;
     check_mesh(mesh)?;
     let grid = &map.centres;
     let (inv_z, faces) = rasterise(mesh, grid, cam_from_world, config);
@@ -369,6 +386,7 @@ pub fn render(
     shading: &Shading,
     config: &RasterConfig,
 ) -> Result<Render, RasterError> {
+    config.check()?;
     check_mesh(mesh)?;
     check_shading(mesh, shading)?;
     let (inv_z, faces) = rasterise(mesh, &map.centres, cam_from_world, config);
@@ -951,20 +969,7 @@ mod tests {
     use crate::camera::CameraModel;
     use nalgebra::UnitQuaternion;
 
-    /// SplitMix64: a tiny deterministic generator for test geometry.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::Rng;
 
     fn camera(model: CameraModel, width: u32, height: u32, params: Vec<f64>) -> Camera {
         Camera {
@@ -1028,15 +1033,15 @@ mod tests {
             near: 0.5,
             ..RasterConfig::default()
         };
-        let mut rng = Rng(7);
+        let mut rng = Rng::new(7);
         let mut covered_total = 0;
         for _ in 0..60 {
             let v: Vec<[f64; 3]> = (0..3)
                 .map(|_| {
                     [
-                        rng.uniform(-0.5, 0.5),
-                        rng.uniform(-0.4, 0.4),
-                        rng.uniform(-0.5, 2.0),
+                        rng.range(-0.5, 0.5),
+                        rng.range(-0.4, 0.4),
+                        rng.range(-0.5, 2.0),
                     ]
                 })
                 .collect();
@@ -1091,14 +1096,14 @@ mod tests {
             rotation: UnitQuaternion::from_euler_angles(0.2, -0.3, 0.1),
             translation: Vector3::new(0.1, -0.2, 3.0),
         });
-        let mut rng = Rng(11);
+        let mut rng = Rng::new(11);
         let n = 80;
         let positions: Vec<[f64; 3]> = (0..3 * n)
             .map(|_| {
                 [
-                    rng.uniform(-1.0, 1.0),
-                    rng.uniform(-1.0, 1.0),
-                    rng.uniform(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
                 ]
             })
             .collect();
@@ -1115,7 +1120,7 @@ mod tests {
             .collect();
         let mut checked = 0;
         for _ in 0..2000 {
-            let (x, y) = (rng.next() % 120, rng.next() % 90);
+            let (x, y) = (rng.next_u64() % 120, rng.next_u64() % 90);
             let ray = cam
                 .cam_from_image(&Pixel::new(x as f64 + 0.5, y as f64 + 0.5))
                 .unwrap();
@@ -1499,14 +1504,14 @@ mod tests {
             vec![80.0, 48.0, 32.0, -0.1],
         );
         let map = SampleMap::new(&cam, 2).unwrap();
-        let mut rng = Rng(3);
+        let mut rng = Rng::new(3);
         let n = 400u32;
         let positions: Vec<[f64; 3]> = (0..3 * n)
             .map(|_| {
                 [
-                    rng.uniform(-1.0, 1.0),
-                    rng.uniform(-1.0, 1.0),
-                    rng.uniform(1.5, 3.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(1.5, 3.0),
                 ]
             })
             .collect();

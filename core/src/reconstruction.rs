@@ -64,12 +64,9 @@ pub struct Reconstruction {
 pub enum ValidationError {
     #[error("camera stored under key {key} has id {id}")]
     CameraKey { key: u32, id: u32 },
-    #[error("camera {camera_id}: {source}")]
-    InvalidCamera {
-        camera_id: u32,
-        #[source]
-        source: CameraError,
-    },
+    /// The camera's own error is part of the message, so it is not also the `source`.
+    #[error("camera {camera_id}: {error}")]
+    InvalidCamera { camera_id: u32, error: CameraError },
     #[error("image stored under key {key} has id {id}")]
     ImageKey { key: u32, id: u32 },
     #[error("point3D stored under key {key} has id {id}")]
@@ -151,9 +148,9 @@ impl Reconstruction {
             }
             camera
                 .validate()
-                .map_err(|source| ValidationError::InvalidCamera {
+                .map_err(|error| ValidationError::InvalidCamera {
                     camera_id: key,
-                    source,
+                    error,
                 })?;
         }
         for (&key, image) in &self.images {

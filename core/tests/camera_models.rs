@@ -3,22 +3,7 @@
 
 use fresco_core::camera::{CameraModel, MAX_PARAMS};
 use fresco_core::nalgebra::{Matrix2x3, Point2, Point3, SMatrix, UnitQuaternion, Vector3, Vector6};
-use fresco_core::{CamFromWorld, Camera, CameraError, Pixel, Rigid3};
-
-/// SplitMix64: deterministic test inputs without a `rand` dependency.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use fresco_core::{CamFromWorld, Camera, CameraError, Pixel, Rigid3, Rng};
 
 /// One camera per model, 640x480, with distortion of the strength real lenses show
 /// (a few percent of displacement at the image corners), all parameters distinct so that a
@@ -41,23 +26,23 @@ fn cameras() -> Vec<Camera> {
 
 /// A point in front of the camera that projects inside (or near) the image.
 fn point_in_view(rng: &mut Rng) -> Point3<f64> {
-    let z = rng.uniform(1.0, 10.0);
-    Point3::new(rng.uniform(-0.65, 0.65) * z, rng.uniform(-0.5, 0.5) * z, z)
+    let z = rng.range(1.0, 10.0);
+    Point3::new(rng.range(-0.65, 0.65) * z, rng.range(-0.5, 0.5) * z, z)
 }
 
 fn random_pose(rng: &mut Rng) -> Rigid3 {
     let axis = Vector3::new(
-        rng.uniform(-1.0, 1.0),
-        rng.uniform(-1.0, 1.0),
-        rng.uniform(-1.0, 1.0),
+        rng.range(-1.0, 1.0),
+        rng.range(-1.0, 1.0),
+        rng.range(-1.0, 1.0),
     );
-    let angle = rng.uniform(0.0, 3.0);
+    let angle = rng.range(0.0, 3.0);
     Rigid3::new(
         UnitQuaternion::from_scaled_axis(axis.normalize() * angle),
         Vector3::new(
-            rng.uniform(-3.0, 3.0),
-            rng.uniform(-3.0, 3.0),
-            rng.uniform(-3.0, 3.0),
+            rng.range(-3.0, 3.0),
+            rng.range(-3.0, 3.0),
+            rng.range(-3.0, 3.0),
         ),
     )
 }
@@ -208,7 +193,7 @@ fn focal_principal_point_and_k_matrix() {
         vec![700.0, 700.0, 400.0, 300.0, 0.0, 0.0, 0.0, 0.0]
     );
     // Pinhole projection is exactly K p / z.
-    let mut rng = Rng(1);
+    let mut rng = Rng::new(1);
     for cam in &cams[..2] {
         let k = cam.calibration_matrix();
         for _ in 0..20 {
@@ -271,10 +256,10 @@ fn cam_from_image_inverts_image_from_cam_over_the_whole_image() {
 
 #[test]
 fn undistort_inverts_distort_on_the_visible_region() {
-    let mut rng = Rng(2);
+    let mut rng = Rng::new(2);
     for cam in cameras() {
         for _ in 0..500 {
-            let n = Point2::new(rng.uniform(-0.7, 0.7), rng.uniform(-0.55, 0.55));
+            let n = Point2::new(rng.range(-0.7, 0.7), rng.range(-0.55, 0.55));
             let d = cam.distort(&n);
             let back = cam.undistort(&d).unwrap();
             // Residual 1e-10 in distorted units, and the Jacobian is close to I here.
@@ -310,7 +295,7 @@ fn undistort_fails_clearly_where_distortion_has_no_inverse() {
 
 #[test]
 fn d_pixel_d_point_matches_finite_differences() {
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     for cam in cameras() {
         for _ in 0..200 {
             let p = point_in_view(&mut rng);
@@ -333,7 +318,7 @@ fn d_pixel_d_point_matches_finite_differences() {
 
 #[test]
 fn d_pixel_d_params_matches_finite_differences() {
-    let mut rng = Rng(4);
+    let mut rng = Rng::new(4);
     for cam in cameras() {
         let n = cam.model.num_params();
         for _ in 0..200 {
@@ -359,7 +344,7 @@ fn d_pixel_d_params_matches_finite_differences() {
 
 #[test]
 fn d_pixel_d_world_point_and_d_pose_match_finite_differences() {
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     for cam in cameras() {
         for _ in 0..100 {
             let pose = CamFromWorld(random_pose(&mut rng));

@@ -3,37 +3,22 @@
 
 use fresco_core::nalgebra::{Matrix3x4, Point3, UnitQuaternion, Vector3, Vector4, Vector6};
 use fresco_core::pose::{so3_exp, so3_log};
-use fresco_core::{CamFromWorld, Camera, Rigid3, Sim3, WorldFromCam};
+use fresco_core::{CamFromWorld, Camera, Rigid3, Rng, Sim3, WorldFromCam};
 
-/// SplitMix64: deterministic test inputs without a `rand` dependency.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Standard normal (Box–Muller).
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform(f64::MIN_POSITIVE, 1.0);
-        let u2 = self.uniform(0.0, 1.0);
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
+/// Random vectors, rotations and rigid transforms drawn from fresco's generator.
+trait Draw {
+    fn vector(&mut self, r: f64) -> Vector3<f64>;
+    fn rotation(&mut self) -> UnitQuaternion<f64>;
+    fn rigid(&mut self) -> Rigid3;
+}
+
+impl Draw for Rng {
     fn vector(&mut self, r: f64) -> Vector3<f64> {
-        Vector3::new(
-            self.uniform(-r, r),
-            self.uniform(-r, r),
-            self.uniform(-r, r),
-        )
+        Vector3::new(self.range(-r, r), self.range(-r, r), self.range(-r, r))
     }
     fn rotation(&mut self) -> UnitQuaternion<f64> {
         let axis = self.vector(1.0).normalize();
-        UnitQuaternion::from_scaled_axis(axis * self.uniform(0.0, std::f64::consts::PI))
+        UnitQuaternion::from_scaled_axis(axis * self.range(0.0, std::f64::consts::PI))
     }
     fn rigid(&mut self) -> Rigid3 {
         Rigid3::new(self.rotation(), self.vector(5.0))
@@ -46,7 +31,7 @@ fn rot_angle(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> f64 {
 
 #[test]
 fn compose_inverse_and_transform_follow_the_group_laws() {
-    let mut rng = Rng(10);
+    let mut rng = Rng::new(10);
     for _ in 0..100 {
         let (c_from_b, b_from_a) = (rng.rigid(), rng.rigid());
         let x = Point3::from(rng.vector(10.0));
@@ -70,7 +55,7 @@ fn compose_inverse_and_transform_follow_the_group_laws() {
 
 #[test]
 fn matrix_round_trip_and_rejection_of_non_rotations() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     for _ in 0..50 {
         let t = rng.rigid();
         let m = t.to_matrix();
@@ -101,7 +86,7 @@ fn matrix_round_trip_and_rejection_of_non_rotations() {
 
 #[test]
 fn so3_exp_and_log_are_inverse_including_tiny_and_near_pi_angles() {
-    let mut rng = Rng(12);
+    let mut rng = Rng::new(12);
     for &angle in &[
         0.0,
         1e-14,
@@ -135,7 +120,7 @@ fn so3_exp_and_log_are_inverse_including_tiny_and_near_pi_angles() {
 
 #[test]
 fn retract_and_local_are_inverse_and_retract_moves_the_camera_frame() {
-    let mut rng = Rng(13);
+    let mut rng = Rng::new(13);
     for _ in 0..50 {
         let pose = rng.rigid();
         let zero = pose.retract(&Vector6::zeros());
@@ -143,7 +128,7 @@ fn retract_and_local_are_inverse_and_retract_moves_the_camera_frame() {
         assert!(rot_angle(&zero.rotation, &pose.rotation) < 1e-15);
         let mut delta = Vector6::zeros();
         for i in 0..6 {
-            delta[i] = rng.uniform(-0.5, 0.5);
+            delta[i] = rng.range(-0.5, 0.5);
         }
         let moved = pose.retract(&delta);
         let local = pose.local(&moved);
@@ -163,7 +148,7 @@ fn retract_and_local_are_inverse_and_retract_moves_the_camera_frame() {
 
 #[test]
 fn camera_centre_and_inverse_pose_agree() {
-    let mut rng = Rng(14);
+    let mut rng = Rng::new(14);
     for _ in 0..50 {
         let cam_from_world = CamFromWorld(rng.rigid());
         let c = cam_from_world.center();
@@ -183,15 +168,15 @@ fn camera_centre_and_inverse_pose_agree() {
 
 #[test]
 fn projection_matrix_projects_like_the_pinhole_camera() {
-    let mut rng = Rng(15);
+    let mut rng = Rng::new(15);
     let camera = Camera::pinhole(1, 640, 480, 510.0, 530.0, 321.0, 239.5).unwrap();
     for _ in 0..50 {
         let pose = CamFromWorld(rng.rigid());
         let p = pose.projection_matrix(&camera);
         let x = pose.inverse().0.transform_point(&Point3::new(
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(2.0, 8.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(2.0, 8.0),
         ));
         let h = p * Vector4::new(x.x, x.y, x.z, 1.0);
         let pixel = camera.image_from_world(&pose, &x).unwrap();
@@ -201,16 +186,16 @@ fn projection_matrix_projects_like_the_pinhole_camera() {
 
 #[test]
 fn sim3_group_laws_and_camera_transport() {
-    let mut rng = Rng(16);
+    let mut rng = Rng::new(16);
     let camera = Camera::simple_radial(1, 640, 480, 500.0, 320.0, 240.0, -0.1).unwrap();
     for _ in 0..50 {
         let s = Sim3 {
-            scale: rng.uniform(0.2, 5.0),
+            scale: rng.range(0.2, 5.0),
             rotation: rng.rotation(),
             translation: rng.vector(4.0),
         };
         let s2 = Sim3 {
-            scale: rng.uniform(0.2, 5.0),
+            scale: rng.range(0.2, 5.0),
             rotation: rng.rotation(),
             translation: rng.vector(4.0),
         };
@@ -223,9 +208,9 @@ fn sim3_group_laws_and_camera_transport() {
         // every camera centre by the similarity.
         let pose = CamFromWorld(rng.rigid());
         let world = pose.inverse().0.transform_point(&Point3::new(
-            rng.uniform(-1.0, 1.0),
-            rng.uniform(-0.8, 0.8),
-            rng.uniform(2.0, 8.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-0.8, 0.8),
+            rng.range(2.0, 8.0),
         ));
         let moved = s.transform_cam_from_world(&pose);
         let before = camera.image_from_world(&pose, &world).unwrap();
@@ -248,10 +233,10 @@ fn cost(sim: &Sim3, src: &[Point3<f64>], dst: &[Point3<f64>]) -> f64 {
 
 #[test]
 fn umeyama_recovers_known_similarities_exactly_and_under_noise() {
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     for trial in 0..20 {
         let truth = Sim3 {
-            scale: rng.uniform(0.1, 10.0),
+            scale: rng.range(0.1, 10.0),
             rotation: rng.rotation(),
             translation: rng.vector(10.0),
         };
@@ -320,7 +305,7 @@ fn umeyama_recovers_known_similarities_exactly_and_under_noise() {
 
 #[test]
 fn umeyama_returns_a_rotation_for_mirrored_data_and_none_when_degenerate() {
-    let mut rng = Rng(18);
+    let mut rng = Rng::new(18);
     let src: Vec<Point3<f64>> = (0..50).map(|_| Point3::from(rng.vector(1.0))).collect();
     // Mirrored targets: the best proper rotation, never a reflection (det = +1).
     let mirrored: Vec<Point3<f64>> = src.iter().map(|p| Point3::new(-p.x, p.y, p.z)).collect();

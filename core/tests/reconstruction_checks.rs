@@ -135,7 +135,7 @@ fn validate_names_each_kind_of_inconsistency() {
         },
         ValidationError::InvalidCamera {
             camera_id: 1,
-            source: fresco_core::CameraError::ParamCount {
+            error: fresco_core::CameraError::ParamCount {
                 model: "SIMPLE_RADIAL",
                 expected: 4,
                 got: 3,

@@ -14,6 +14,7 @@
 //! stretches the whole pattern (a backdrop far away uses a larger one).
 
 use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::rng::splitmix64;
 
 /// A seeded procedural albedo: linear interpolation of 8-bit sRGB-encoded colours, values in [0, 1].
 #[derive(Clone, Debug)]
@@ -179,14 +180,6 @@ fn hash3(x: i64, y: i64, z: i64, seed: u64) -> u64 {
         h = splitmix64(h ^ v as u64);
     }
     h
-}
-
-/// SplitMix64's output function applied to `x + golden gamma`.
-pub(crate) fn splitmix64(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {

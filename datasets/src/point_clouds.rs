@@ -21,24 +21,46 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use fresco_core::Mesh;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::{Mesh, Rng};
 
 /// How to sample; see the module documentation for each defect.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampleConfig {
     /// Samples on the surface before holes are cut (outliers come on top).
+    /// Default: `100_000`.
     pub count: usize,
+    /// Seed of every draw. Default: `1`.
     pub seed: u64,
-    /// Standard deviation of the Gaussian added to each normal component (unit normals).
+    /// Standard deviation of the Gaussian added to each normal component (unit normals),
+    /// finite and >= 0. Default: `0.0`.
     pub normal_noise: f64,
-    /// Standard deviation of the offset along the normal, as a fraction of the bbox diagonal.
+    /// Standard deviation of the offset along the normal, as a fraction of the bbox
+    /// diagonal, finite and >= 0. Default: `0.0`.
     pub position_noise: f64,
+    /// Holes cut out of the surface. Default: `0`.
     pub hole_count: usize,
-    /// Geodesic radius of each hole, as a fraction of the bbox diagonal.
+    /// Geodesic radius of each hole, as a fraction of the bbox diagonal, finite and >= 0.
+    /// Default: `0.05`.
     pub hole_radius: f64,
-    /// Extra outlier points, as a fraction of `count`.
+    /// Extra outlier points, as a fraction of `count`, finite and >= 0. Default: `0.0`.
     pub outlier_fraction: f64,
+}
+
+impl SampleConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        for (name, v) in [
+            ("normal_noise", self.normal_noise),
+            ("position_noise", self.position_noise),
+            ("hole_radius", self.hole_radius),
+            ("outlier_fraction", self.outlier_fraction),
+        ] {
+            require(v.is_finite() && v >= 0.0, name, v, "finite and >= 0")?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for SampleConfig {
@@ -86,34 +108,12 @@ impl OrientedPoints {
     }
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014) with uniform and Gaussian draws.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1) with 53 random bits.
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-    /// Standard normal by Box–Muller (one of the pair is enough here).
-    fn gaussian(&mut self) -> f64 {
-        let u1 = 1.0 - self.uniform(); // (0, 1]: ln is finite
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-    fn unit_vector(&mut self) -> Vector3<f64> {
-        // Uniform on the sphere: z uniform in [-1, 1], azimuth uniform (Archimedes).
-        let z = 2.0 * self.uniform() - 1.0;
-        let phi = std::f64::consts::TAU * self.uniform();
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        Vector3::new(r * phi.cos(), r * phi.sin(), z)
-    }
+/// Uniform on the sphere: z uniform in [-1, 1], azimuth uniform (Archimedes).
+fn unit_vector(rng: &mut Rng) -> Vector3<f64> {
+    let z = 2.0 * rng.uniform() - 1.0;
+    let phi = std::f64::consts::TAU * rng.uniform();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    Vector3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
 /// Why a mesh could not be sampled.
@@ -121,24 +121,13 @@ impl Rng {
 pub enum SampleError {
     #[error("the mesh has no face with positive area to sample")]
     NoArea,
-    #[error("invalid sampling configuration: {0}")]
-    Config(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Samples `cfg.count` oriented points from `mesh` (see the module documentation).
 pub fn sample_points(mesh: &Mesh, cfg: &SampleConfig) -> Result<OrientedPoints, SampleError> {
-    for (name, v) in [
-        ("normal_noise", cfg.normal_noise),
-        ("position_noise", cfg.position_noise),
-        ("hole_radius", cfg.hole_radius),
-        ("outlier_fraction", cfg.outlier_fraction),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(SampleError::Config(format!(
-                "{name} = {v} (must be finite and >= 0)"
-            )));
-        }
-    }
+    cfg.check()?;
     let areas = mesh.face_areas();
     let mut cdf = Vec::with_capacity(areas.len());
     let mut total = 0.0;
@@ -152,7 +141,7 @@ pub fn sample_points(mesh: &Mesh, cfg: &SampleConfig) -> Result<OrientedPoints, 
     let bbox = mesh.bounding_box().ok_or(SampleError::NoArea)?;
     let diagonal = bbox.diagonal();
     let face_normals = mesh.face_normals();
-    let mut rng = Rng(cfg.seed ^ 0x5EED_F00D_CAFE_0001);
+    let mut rng = Rng::new(cfg.seed ^ 0x5EED_F00D_CAFE_0001);
 
     let mut out = OrientedPoints::default();
     out.points.reserve(cfg.count);
@@ -214,11 +203,11 @@ pub fn sample_points(mesh: &Mesh, cfg: &SampleConfig) -> Result<OrientedPoints, 
     if normal_sigma > 0.0 || offset_sigma > 0.0 {
         for (p, n) in out.points.iter_mut().zip(out.normals.iter_mut()) {
             if offset_sigma > 0.0 {
-                *p += *n * (rng.gaussian() * offset_sigma);
+                *p += *n * (rng.normal() * offset_sigma);
             }
             if normal_sigma > 0.0 {
-                let noisy = *n
-                    + Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * normal_sigma;
+                let noisy =
+                    *n + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * normal_sigma;
                 // A perturbation this large that cancels the normal is vanishingly rare;
                 // keep the clean normal then rather than emit a NaN.
                 if let Some(u) = noisy.try_normalize(1e-12) {
@@ -238,7 +227,7 @@ pub fn sample_points(mesh: &Mesh, cfg: &SampleConfig) -> Result<OrientedPoints, 
             lo.z + rng.uniform() * size.z,
         );
         out.points.push(p);
-        out.normals.push(rng.unit_vector());
+        out.normals.push(unit_vector(&mut rng));
         out.outlier.push(true);
         out.face.push(u32::MAX);
     }

@@ -18,6 +18,7 @@
 
 use std::collections::{HashSet, VecDeque};
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::Point3;
 use fresco_core::{Mesh, Progress, Topology};
 
@@ -36,27 +37,64 @@ const MAX_TIPS: usize = 48;
 /// Parameters of the segmentation.
 #[derive(Clone, Debug)]
 pub struct ChartConfig {
-    /// Base vertices of the average geodesic distance ("a few dozen", ZMT05).
+    /// Base vertices of the average geodesic distance ("a few dozen", ZMT05), >= 1.
+    /// Default: `32`.
     pub agd_bases: usize,
-    /// Intervals of the AGD range in the Reeb graph.
+    /// Intervals of the AGD range in the Reeb graph, >= 1. Default: `24`.
     pub reeb_levels: u32,
     /// Geodesic distance method for the AGD, the features and the splits.
+    /// Default: `Method::FastMarching`.
     pub geodesic: Method,
-    /// Cut protrusions off as their own charts ([`crate::features`]).
+    /// Cut protrusions off as their own charts ([`crate::features`]). Default: `true`.
     pub features: bool,
-    /// Extent of the region growing from a tip, in units of the shape's AGD radius. The
-    /// paper shows 1, 2 and 5 (figure 5); larger values give fewer charts.
+    /// Extent of the region growing from a tip, in units of the shape's AGD radius, finite
+    /// and > 0. The paper shows 1, 2 and 5 (figure 5); larger values give fewer charts.
+    /// Default: `2.0`.
     pub isovalue: f64,
-    /// `k`: equal intervals of the normalised tip distance (the samples of `A(x)`).
+    /// `k`: equal intervals of the normalised tip distance (the samples of `A(x)`), >= 4.
+    /// Default: `40`.
     pub bands: usize,
     /// `N`: passes of the Gaussian filter over `A(x)`. The paper shows 10, 30 and 50
-    /// (figure 7) and prefers 30 over 10 (figure 8).
+    /// (figure 7) and prefers 30 over 10 (figure 8). Default: `30`.
     pub gaussian_steps: usize,
     /// Minimum log–log slope of the smoothed `A(x)` where a feature joins the body (1 is
-    /// a cone: no separation).
+    /// a cone: no separation), finite. Default: `1.25`.
     pub sharpness: f64,
-    /// Features smaller than this fraction of their component's area are not cut.
+    /// Features smaller than this fraction of their component's area are not cut; in
+    /// [0, 1]. Default: `0.005`.
     pub min_feature_area: f64,
+}
+
+impl ChartConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(self.agd_bases >= 1, "agd_bases", self.agd_bases, ">= 1")?;
+        require(
+            self.reeb_levels >= 1,
+            "reeb_levels",
+            self.reeb_levels,
+            ">= 1",
+        )?;
+        require(
+            self.isovalue.is_finite() && self.isovalue > 0.0,
+            "isovalue",
+            self.isovalue,
+            "finite and > 0",
+        )?;
+        require(self.bands >= 4, "bands", self.bands, ">= 4")?;
+        require(
+            self.sharpness.is_finite(),
+            "sharpness",
+            self.sharpness,
+            "finite",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.min_feature_area),
+            "min_feature_area",
+            self.min_feature_area,
+            "in [0, 1]",
+        )
+    }
 }
 
 impl Default for ChartConfig {
@@ -135,19 +173,9 @@ pub fn segment(
     cfg: &ChartConfig,
     progress: &dyn Progress,
 ) -> Result<Charts, ParamError> {
+    cfg.check()?;
     if mesh.faces.is_empty() {
         return Err(ParamError::EmptyMesh);
-    }
-    if cfg.agd_bases == 0 || cfg.reeb_levels == 0 || cfg.bands < 4 {
-        return Err(ParamError::Config(
-            "agd_bases and reeb_levels must be at least 1, bands at least 4".into(),
-        ));
-    }
-    if !(cfg.isovalue > 0.0 && cfg.isovalue.is_finite()) {
-        return Err(ParamError::Config(format!(
-            "isovalue must be positive, got {}",
-            cfg.isovalue
-        )));
     }
     if let Some(v) = mesh
         .positions

@@ -1,15 +1,16 @@
 //! What can go wrong while charting and unwrapping a mesh.
 
-use fresco_core::MeshError;
 use fresco_core::topology::TopologyError;
+use fresco_core::{ConfigError, MeshError};
 
 /// Errors of fresco-param. Each names the mesh elements at fault so that a user can find
 /// and repair them.
 #[derive(Debug, thiserror::Error)]
 pub enum ParamError {
     /// The face list itself is unusable (index out of range, repeated vertex, too large).
+    /// Shown in the message, so not also the `source` (`From` is written out below).
     #[error("mesh faces are unusable: {0}")]
-    Topology(#[from] TopologyError),
+    Topology(TopologyError),
     /// Charting needs a 2-manifold: an edge shared by three or more faces, or a vertex
     /// whose faces form several fans, has no disc neighbourhood to cut and flatten.
     #[error(
@@ -32,11 +33,21 @@ pub enum ParamError {
     #[error("vertex {vertex} has a non-finite position")]
     NonFinitePosition { vertex: u32 },
     /// A configuration value is outside its meaningful range.
-    #[error("invalid chart configuration: {0}")]
-    Config(String),
-    /// An attribute or index of the mesh is invalid (unwrapping).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// An attribute or index of the mesh is invalid (unwrapping). Shown in the message, so
+    /// not also the `source`.
     #[error("invalid mesh: {0}")]
-    Mesh(#[from] MeshError),
+    Mesh(MeshError),
+    /// UVs were to be measured on a mesh without any.
+    #[error("the mesh has no texture coordinates")]
+    NoTextureCoordinates,
+    /// The charts to pack have no (finite) area, so no texel density fits them.
+    #[error("the charts have no area to pack")]
+    NoChartArea,
+    /// No texel density down to 1e-12 texels per unit packs the charts into one atlas.
+    #[error("the charts cannot be packed into one atlas at any texel density")]
+    Unpackable,
     /// `face_chart` given to `unwrap_charts` does not have one label per face.
     #[error("face_chart has {len} entries but the mesh has {faces} faces")]
     ChartLength { len: usize, faces: usize },
@@ -48,4 +59,16 @@ pub enum ParamError {
         "chart of {width}x{height} texels (with gutter) does not fit an atlas of {atlas} texels: lower the texels per unit"
     )]
     ChartTooLarge { width: u32, height: u32, atlas: u32 },
+}
+
+impl From<TopologyError> for ParamError {
+    fn from(error: TopologyError) -> Self {
+        ParamError::Topology(error)
+    }
+}
+
+impl From<MeshError> for ParamError {
+    fn from(error: MeshError) -> Self {
+        ParamError::Mesh(error)
+    }
 }

@@ -202,9 +202,7 @@ pub struct UvMetrics {
 pub fn measure(mesh: &Mesh) -> Result<UvMetrics, ParamError> {
     mesh.validate()?;
     let Some(uvs) = &mesh.corner_uvs else {
-        return Err(ParamError::Config(
-            "the mesh has no texture coordinates".into(),
-        ));
+        return Err(ParamError::NoTextureCoordinates);
     };
     let nf = mesh.faces.len();
     if nf == 0 {

@@ -21,20 +21,49 @@
 //!    Atlases above 1024 texels search the density at 1024 (gutter scaled alike) and pack
 //!    once at full resolution, shrinking by 3% while that does not fit.
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
 use crate::ParamError;
 
-/// Packing settings.
+/// Packing settings (no defaults of its own: `UnwrapConfig` holds them).
 #[derive(Clone, Debug)]
 pub struct PackConfig {
-    /// Width and height of each atlas image, texels.
+    /// Width and height of each atlas image, texels, in 8..=65536.
     pub atlas_size: u32,
-    /// Minimum distance between charts and from the atlas border, texels.
+    /// Minimum distance between charts and from the atlas border, texels; `2 gutter + 1`
+    /// below `atlas_size`.
     pub gutter: u32,
-    /// Texels per world unit; `None` chooses the largest that fits one atlas.
+    /// Texels per world unit, finite and > 0; `None` chooses the largest that fits one atlas.
     pub texels_per_unit: Option<f64>,
+}
+
+impl PackConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            (8..=65536).contains(&self.atlas_size),
+            "atlas_size",
+            self.atlas_size,
+            "in 8..=65536",
+        )?;
+        require(
+            2 * u64::from(self.gutter) + 1 < u64::from(self.atlas_size),
+            "gutter",
+            self.gutter,
+            &format!("below (atlas_size - 1) / 2 = {}", (self.atlas_size - 1) / 2),
+        )?;
+        if let Some(tpu) = self.texels_per_unit {
+            require(
+                tpu.is_finite() && tpu > 0.0,
+                "texels_per_unit",
+                tpu,
+                "finite and > 0",
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// Where one chart went: `texel = linear · uv + offset` in atlas `atlas` (x right, y down).
@@ -70,18 +99,7 @@ pub struct ChartShape<'a> {
 
 /// Packs `charts`; see the module documentation.
 pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamError> {
-    if cfg.atlas_size < 8 || cfg.atlas_size > 65536 {
-        return Err(ParamError::Config(format!(
-            "atlas size {} is outside 8..=65536",
-            cfg.atlas_size
-        )));
-    }
-    if 2 * cfg.gutter + 1 >= cfg.atlas_size {
-        return Err(ParamError::Config(format!(
-            "gutter {} leaves no room in an atlas of {}",
-            cfg.gutter, cfg.atlas_size
-        )));
-    }
+    cfg.check()?;
     if charts.is_empty() {
         return Ok(Packing {
             placements: Vec::new(),
@@ -93,18 +111,13 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
     let base: Vec<Matrix2<f64>> = charts.par_iter().map(|c| min_area_rotation(c.uv)).collect();
     let w = cfg.atlas_size;
     if let Some(tpu) = cfg.texels_per_unit {
-        if !(tpu > 0.0 && tpu.is_finite()) {
-            return Err(ParamError::Config(format!(
-                "texels per unit {tpu} must be positive"
-            )));
-        }
         let rasters = rasterise_all(charts, &base, tpu, cfg.gutter);
         let (placements, atlases, _) = place(&rasters, w, w, false)?;
         return Ok(finish(placements, atlases, tpu, &base, &rasters));
     }
     let total: f64 = charts.iter().map(|c| c.area).sum();
     if !(total > 0.0 && total.is_finite()) {
-        return Err(ParamError::Config("the charts have no area to pack".into()));
+        return Err(ParamError::NoChartArea);
     }
     if w <= SEARCH_SIZE {
         let (tpu, rasters, placements) = search_density(charts, &base, total, w, cfg.gutter)?;
@@ -210,7 +223,7 @@ fn search_density(
                 }
                 t *= 0.8;
                 if t < 1e-12 {
-                    return Err(ParamError::Config("charts cannot be packed".into()));
+                    return Err(ParamError::Unpackable);
                 }
             }
         }

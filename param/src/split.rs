@@ -331,13 +331,10 @@ mod tests {
         let mut positions = Vec::new();
         // Deterministic pseudo-random heights of +-0.3 of the grid step: normals spread by
         // up to ~40 degrees, face by face.
-        let mut state = 12345u64;
+        let mut rng = fresco_core::Rng::new(12345);
         for j in 0..=n {
             for i in 0..=n {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let z = ((state >> 33) as f64 / (1u64 << 31) as f64 - 0.5) * 0.6;
+                let z = rng.range(-0.3, 0.3);
                 positions.push(fresco_core::nalgebra::Point3::new(i as f64, j as f64, z));
             }
         }

@@ -19,6 +19,7 @@
 //!    ([`pack::pack`]); `corner_uvs` (fresco's v-down convention), `face_groups` (chart id)
 //!    and, with several atlases, `face_textures` (atlas index) are written into the mesh.
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::Point2;
 use fresco_core::{Mesh, Progress, Topology};
 use serde::Serialize;
@@ -32,31 +33,34 @@ use crate::{harmonic, lscm, split, stretch};
 /// Settings of [`unwrap`]; the defaults suit a mesh of any size.
 #[derive(Clone, Debug)]
 pub struct UnwrapConfig {
-    /// Width and height of each atlas image, texels. Default 4096.
+    /// Width and height of each atlas image, texels, in 8..=65536. Default: `4096`.
     pub atlas_size: u32,
-    /// Minimum texels between charts and from the atlas border. Default 4.
+    /// Minimum texels between charts and from the atlas border; `2 gutter + 1` below
+    /// `atlas_size`. Default: `4`.
     pub gutter: u32,
-    /// Texels per world unit; `None` (default) picks the density that fills one atlas.
+    /// Texels per world unit, finite and > 0; `None` picks the density that fills one atlas.
+    /// Default: `None`.
     pub texels_per_unit: Option<f64>,
-    /// Charts whose L2 stretch (normalised by their own area) stays above this are split.
-    /// Default 1.02: a root-mean-square texel-size error of about 2% inside a chart. (1.1, the
-    /// earlier default, left a sphere in two hemispheres at 1.03 once their boundaries move
-    /// freely; xatlas reaches 1.006 on it.)
+    /// Charts whose L2 stretch (normalised by their own area) stays above this are split; at
+    /// least 1. Default: `1.02` (a root-mean-square texel-size error of about 2% inside a
+    /// chart; the earlier default, 1.1, left a sphere in two hemispheres at 1.03 once their
+    /// boundaries move freely; xatlas reaches 1.006 on it).
     pub max_stretch: f64,
     /// Charts covering less than this fraction of their UV convex hull (C shapes, bent
-    /// bands, spirals, which pack badly) are split. Default 0.7: measured on the five bench
-    /// meshes at 0.5 / 0.6 / 0.7, utilisation rose on every one of them with it (torus 0.51 ->
-    /// 0.69, double torus 0.59 -> 0.69, an earlier Poisson temple 0.64 -> 0.68; sphere and temple
-    /// unchanged), for more charts (bench/RESULTS.md, issue 6).
+    /// bands, spirals, which pack badly) are split; in [0, 1]. Default: `0.7` (measured on the
+    /// five bench meshes at 0.5 / 0.6 / 0.7, utilisation rose on every one of them with it:
+    /// torus 0.51 -> 0.69, double torus 0.59 -> 0.69, an earlier Poisson temple 0.64 -> 0.68;
+    /// sphere and temple unchanged, for more charts; bench/RESULTS.md, issue 6).
     pub min_hull_fill: f64,
-    /// Iterations of the stretch optimisation (0 turns it off). Default 6.
+    /// Iterations of the stretch optimisation (0 turns it off). Default: `6`.
     pub stretch_iterations: u32,
-    /// Start from the Reeb-graph charts; `false` (default) starts from connected components and
-    /// lets the splitting make the charts. Measured on the six bench meshes (bench/RESULTS.md,
-    /// issue 6): the Reeb charts give shorter seams on five, but higher stretch on five and
-    /// lower utilisation on four (torus: 0.54 against 0.69), and segmenting costs time.
+    /// Start from the Reeb-graph charts, or (`false`) from connected components and let the
+    /// splitting make the charts. Default: `false` (measured on the six bench meshes,
+    /// bench/RESULTS.md, issue 6: the Reeb charts give shorter seams on five, but higher
+    /// stretch on five and lower utilisation on four, torus 0.54 against 0.69, and
+    /// segmenting costs time).
     pub reeb_charts: bool,
-    /// Settings of the Reeb-graph segmentation.
+    /// Settings of the Reeb-graph segmentation. Default: `ChartConfig::default()`.
     pub charts: crate::charts::ChartConfig,
 }
 
@@ -95,6 +99,7 @@ pub fn unwrap(
     cfg: &UnwrapConfig,
     progress: &dyn Progress,
 ) -> Result<UnwrapReport, ParamError> {
+    cfg.check()?;
     check(mesh)?;
     let topo = Topology::build(mesh)?;
     let mut note = None;
@@ -123,6 +128,35 @@ pub fn unwrap(
         report.warnings.push(n);
     }
     Ok(report)
+}
+
+impl UnwrapConfig {
+    /// Validates every field, the segmentation's too (named `charts.bands`, ...).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.pack().check()?;
+        require(
+            self.max_stretch >= 1.0 && self.max_stretch.is_finite(),
+            "max_stretch",
+            self.max_stretch,
+            "finite and >= 1",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.min_hull_fill),
+            "min_hull_fill",
+            self.min_hull_fill,
+            "in [0, 1]",
+        )?;
+        self.charts.check().map_err(|e| e.within("charts"))
+    }
+
+    /// The packing settings.
+    fn pack(&self) -> PackConfig {
+        PackConfig {
+            atlas_size: self.atlas_size,
+            gutter: self.gutter,
+            texels_per_unit: self.texels_per_unit,
+        }
+    }
 }
 
 fn check(mesh: &Mesh) -> Result<(), ParamError> {
@@ -226,18 +260,13 @@ pub fn unwrap_charts(
     cfg: &UnwrapConfig,
     progress: &dyn Progress,
 ) -> Result<UnwrapReport, ParamError> {
+    cfg.check()?;
     check(mesh)?;
     if face_chart.len() != mesh.faces.len() {
         return Err(ParamError::ChartLength {
             len: face_chart.len(),
             faces: mesh.faces.len(),
         });
-    }
-    if cfg.max_stretch.is_nan() || cfg.max_stretch < 1.0 {
-        return Err(ParamError::Config(format!(
-            "max_stretch {} must be at least 1",
-            cfg.max_stretch
-        )));
     }
     let topo = Topology::build(mesh)?;
     let warnings = input_warnings(mesh, &topo);
@@ -268,14 +297,7 @@ pub fn unwrap_charts(
             area: f.area,
         })
         .collect();
-    let packing = pack(
-        &shapes,
-        &PackConfig {
-            atlas_size: cfg.atlas_size,
-            gutter: cfg.gutter,
-            texels_per_unit: cfg.texels_per_unit,
-        },
-    )?;
+    let packing = pack(&shapes, &cfg.pack())?;
     progress.end();
     let nf = mesh.faces.len();
     let mut corner_uvs = vec![[[0f32; 2]; 3]; nf];

@@ -9,6 +9,7 @@
 use std::path::Path;
 
 use fresco_core::Progress;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::ply::{PlyFace, PlyFormat, PlyLayout, PlyReader, PlyVertex, PlyWriter};
 use serde::Serialize;
 
@@ -19,13 +20,23 @@ use crate::store::Pst;
 /// Settings of [`apply_to_ply`].
 #[derive(Clone, Debug)]
 pub struct ApplyConfig {
+    /// Default: `FieldConfig::default()`.
     pub field: FieldConfig,
-    /// The channel written as vertex colour (width 3, or 1 for grey; default `rgb`).
+    /// The channel written as vertex colour (width 3, or 1 for grey). Default: `"rgb"`.
     pub channel: String,
-    /// Vertices evaluated per batch (default 1M).
+    /// Vertices evaluated per batch, >= 1. Default: `1_048_576` (1M).
     pub chunk: usize,
-    /// Output encoding (default binary little endian).
+    /// Output encoding. Default: `PlyFormat::BinaryLittleEndian`.
     pub format: PlyFormat,
+}
+
+impl ApplyConfig {
+    /// Validates every field, the field's too (named `field.k`, ...). The channel is checked
+    /// against the PST by [`apply_to_ply`].
+    pub fn check(&self) -> std::result::Result<(), ConfigError> {
+        self.field.check().map_err(|e| e.within("field"))?;
+        require(self.chunk >= 1, "chunk", self.chunk, ">= 1")
+    }
 }
 
 impl Default for ApplyConfig {
@@ -62,6 +73,7 @@ pub fn apply_to_ply(
     cfg: &ApplyConfig,
     progress: &dyn Progress,
 ) -> Result<ApplyReport> {
+    cfg.check()?;
     if same_file(input, output) {
         return Err(PstError::Parameter(format!(
             "output {} is the input: refusing to write over it",

@@ -44,14 +44,9 @@ pub fn queries_near_samples(samples: &SampleSet, count: usize, seed: u64) -> Vec
     }
     let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     let spacing = diag / (samples.len() as f32).sqrt();
-    let mut state = seed;
-    let mut next = || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32) - 0.5
-    };
+    let mut rng = fresco_core::Rng::new(seed);
+    // 24 random bits: uniform in [-0.5, 0.5) in f32.
+    let mut next = || ((rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32) - 0.5;
     (0..count)
         .map(|i| {
             let p = samples.positions[i * samples.len() / count.max(1)];

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use fresco_core::FormatError;
+use fresco_core::{ConfigError, FormatError};
 
 /// Errors of every pst operation. Libraries return these; the CLI prints them.
 #[derive(Debug, thiserror::Error)]
@@ -11,14 +11,18 @@ pub enum PstError {
     #[error(transparent)]
     Format(#[from] FormatError),
     /// The operating system refused an operation on a path (temporary folder, PST folder).
-    #[error("{path}: {what}: {source}")]
+    /// The OS error is part of the message, so it is not also the `source` (see
+    /// `FormatError::Io`).
+    #[error("{path}: {what}: {error}")]
     Io {
         path: PathBuf,
         what: &'static str,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    /// A parameter was out of range (target size 0, k = 0, empty region, ...).
+    /// A field of a `Config` is out of range (target size 0, k = 0, ...).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// An argument of an operation is unusable (an empty region, a missing channel, ...).
     #[error("invalid parameter: {0}")]
     Parameter(String),
     /// The input holds no usable point (empty file, only non-finite coordinates).
@@ -37,11 +41,11 @@ pub enum PstError {
 }
 
 impl PstError {
-    pub(crate) fn io(path: impl Into<PathBuf>, what: &'static str, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: impl Into<PathBuf>, what: &'static str, error: std::io::Error) -> Self {
         PstError::Io {
             path: path.into(),
             what,
-            source,
+            error,
         }
     }
     pub(crate) fn store(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {

@@ -24,6 +24,7 @@
 //! The antialiased lookup of section 4 ([`Field::eval_antialiased`]) averages the samples in a
 //! sphere of given radius (the pixel's footprint) when it holds more than one.
 
+use fresco_core::config::{ConfigError, require};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -44,10 +45,28 @@ pub enum Kernel {
 /// Settings of a PST evaluation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FieldConfig {
-    /// Neighbourhood size k (default 8, as in the benchmarks; larger k smooths).
+    /// Neighbourhood size k, >= 1 (larger k smooths). Default: `8` (as in the benchmarks).
     pub k: usize,
-    /// Decay function (default Hermite).
+    /// Decay function; a singular kernel's power must be finite and > 0.
+    /// Default: `Kernel::Hermite`.
     pub kernel: Kernel,
+}
+
+impl FieldConfig {
+    /// Validates every field (see each field's range). [`Field::new`] takes any `k` (0 is
+    /// read as 1); the library entry points that take a `FieldConfig` call this first.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(self.k >= 1, "k", self.k, ">= 1")?;
+        if let Kernel::Singular { power } = self.kernel {
+            require(
+                power.is_finite() && power > 0.0,
+                "kernel.power",
+                power,
+                "finite and > 0",
+            )?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for FieldConfig {

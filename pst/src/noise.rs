@@ -9,14 +9,10 @@ pub struct Perlin {
 impl Perlin {
     pub fn new(seed: u64) -> Perlin {
         let mut p: [u8; 256] = std::array::from_fn(|i| i as u8);
-        let mut state = seed;
+        let mut rng = fresco_core::Rng::new(seed);
         for i in (1..256).rev() {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            p.swap(i, (z % (i as u64 + 1)) as usize);
+            // Modulo, not `Rng::below`: the permutations of saved edits stay the same.
+            p.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
         }
         Perlin {
             perm: std::array::from_fn(|i| p[i % 256]),

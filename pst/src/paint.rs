@@ -160,6 +160,7 @@ pub fn run_script(
     field: FieldConfig,
     progress: &dyn Progress,
 ) -> Result<Vec<OpReport>> {
+    field.check()?;
     let text = std::fs::read_to_string(path)
         .map_err(|e| PstError::io(path, "cannot read the ops file", e))?;
     let script: Script = serde_json::from_str(&text).map_err(|e| PstError::Op {
@@ -203,6 +204,7 @@ pub fn apply_op(
     field: FieldConfig,
     progress: &dyn Progress,
 ) -> Result<OpReport> {
+    field.check()?;
     let name = serde_json::to_value(op)
         .ok()
         .and_then(|v| v.get("op").and_then(|s| s.as_str()).map(str::to_string))

@@ -51,6 +51,7 @@ pub fn refine(
     field_cfg: FieldConfig,
     progress: &dyn Progress,
 ) -> Result<RefineReport> {
+    field_cfg.check()?;
     if !pst.manifest.node_files {
         return Err(PstError::store(
             &pst.dir,

@@ -29,6 +29,7 @@
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Point3, Vector3};
 use fresco_core::{Aabb, FormatError, Progress};
 use rayon::prelude::*;
@@ -47,22 +48,62 @@ use crate::samples::SampleSet;
 /// Settings of the out-of-core sampling.
 #[derive(Clone, Debug)]
 pub struct SamplingConfig {
-    /// Target number of samples n (default 100 000, the paper's typical in-core size).
+    /// Target number of samples n, >= 1. Default: `100_000` (the paper's typical in-core
+    /// size).
     pub target: u64,
-    /// Adaptivity factor alpha of the paper, in samples per 1-node: r_i spans
-    /// [n/n0 - alpha, n/n0 + alpha] with the node densities (default 0: uniform).
+    /// Adaptivity factor alpha of the paper, in samples per 1-node, finite and >= 0: r_i
+    /// spans [n/n0 - alpha, n/n0 + alpha] with the node densities. Default: `0.0` (uniform).
     pub alpha: f64,
-    /// Centroid (default) or quadric positions.
+    /// Centroid or quadric positions. Default: `PositionRule::Centroid`.
     pub position: PositionRule,
-    /// Correct the paper's sub-grid sizes so that the total hits n (default true).
+    /// Correct the paper's sub-grid sizes so that the total hits n. Default: `true`.
     pub correct_size: bool,
-    /// The bounding box when known (skips the first pass over the input).
+    /// The bounding box when known (skips the first pass over the input); finite, `min` <=
+    /// `max`. Default: `None`.
     pub bbox: Option<Aabb>,
-    /// Memory for the 1-node file buffers (default 32 MiB; with growth slack the buffers
-    /// take up to twice that).
+    /// Memory for the 1-node file buffers, >= 1 (with growth slack the buffers take up to
+    /// twice that). Default: `33_554_432` (32 MiB).
     pub buffer_bytes: usize,
-    /// Open 1-node files at once (default 64).
+    /// Open 1-node files at once, >= 1. Default: `64`.
     pub max_open_files: usize,
+}
+
+impl SamplingConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> std::result::Result<(), ConfigError> {
+        require(self.target >= 1, "target", self.target, ">= 1")?;
+        require(
+            self.alpha.is_finite() && self.alpha >= 0.0,
+            "alpha",
+            self.alpha,
+            "finite and >= 0",
+        )?;
+        if let Some(b) = &self.bbox {
+            let ordered = (0..3).all(|a| b.min[a].is_finite() && b.max[a] >= b.min[a]);
+            require(
+                ordered && b.max.iter().all(|v| v.is_finite()),
+                "bbox",
+                format!(
+                    "{:?} - {:?}",
+                    b.min.coords.as_slice(),
+                    b.max.coords.as_slice()
+                ),
+                "finite with min <= max",
+            )?;
+        }
+        require(
+            self.buffer_bytes >= 1,
+            "buffer_bytes",
+            self.buffer_bytes,
+            ">= 1",
+        )?;
+        require(
+            self.max_open_files >= 1,
+            "max_open_files",
+            self.max_open_files,
+            ">= 1",
+        )
+    }
 }
 
 impl Default for SamplingConfig {
@@ -118,17 +159,7 @@ pub fn sample(
     nodes_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<Sampling> {
-    if cfg.target == 0 {
-        return Err(PstError::Parameter(
-            "target size n must be at least 1".into(),
-        ));
-    }
-    if cfg.alpha.is_nan() || cfg.alpha < 0.0 {
-        return Err(PstError::Parameter(format!(
-            "adaptivity alpha must be >= 0, got {}",
-            cfg.alpha
-        )));
-    }
+    cfg.check()?;
     let has_normals = source.has_normals();
     // Phase times at info level (`fresco -v`): the profile of where sampling spends its time.
     let clock = std::time::Instant::now();

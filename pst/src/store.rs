@@ -17,6 +17,7 @@
 use std::path::{Path, PathBuf};
 
 use fresco_core::Progress;
+use fresco_core::config::{ConfigError, require};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{PstError, Result};
@@ -98,16 +99,35 @@ pub struct Manifest {
 /// Settings of [`Pst::create`].
 #[derive(Clone, Debug)]
 pub struct CreateConfig {
+    /// Default: `SamplingConfig::default()`.
     pub sampling: SamplingConfig,
-    /// Channels and their initial values (default: `rgb` = 0.8 grey).
+    /// Channels and their initial values: at least one, none empty.
+    /// Default: `vec![Channel::new("rgb", &[0.8, 0.8, 0.8])]` (`rgb`, 0.8 grey).
     pub channels: Vec<Channel>,
-    /// Where the 1-node files are written during sampling (default: inside the staging folder
-    /// beside the output). They are moved into `<pst>/nodes` at the end.
+    /// Where the 1-node files are written during sampling; they are moved into `<pst>/nodes`
+    /// at the end. Default: `None` (inside the staging folder beside the output).
     pub temp_dir: Option<PathBuf>,
-    /// Keep the 1-node files for later refinement (default true).
+    /// Keep the 1-node files for later refinement. Default: `true`.
     pub keep_node_files: bool,
-    /// In-core budget for the LRU (default None).
+    /// In-core sample budget for the LRU, >= 1. Default: `None` (no budget).
     pub budget: Option<usize>,
+}
+
+impl CreateConfig {
+    /// Validates every field, the sampling's too (named `sampling.target`, ...).
+    pub fn check(&self) -> std::result::Result<(), ConfigError> {
+        self.sampling.check().map_err(|e| e.within("sampling"))?;
+        require(
+            !self.channels.is_empty() && self.channels.iter().all(|c| c.width > 0),
+            "channels",
+            format!("{} channels", self.channels.len()),
+            "at least one channel, none of width 0",
+        )?;
+        if let Some(budget) = self.budget {
+            require(budget >= 1, "budget", budget, ">= 1")?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for CreateConfig {
@@ -138,15 +158,11 @@ impl Pst {
         out: &Path,
         progress: &dyn Progress,
     ) -> Result<(Pst, Sampling)> {
+        cfg.check()?;
         if out.exists() && !out.join(MANIFEST).exists() {
             return Err(PstError::store(
                 out,
                 "exists and is not a PST folder; refusing to replace it",
-            ));
-        }
-        if cfg.channels.is_empty() || cfg.channels.iter().any(|c| c.width == 0) {
-            return Err(PstError::Parameter(
-                "at least one non-empty channel is needed".into(),
             ));
         }
         let parent = out

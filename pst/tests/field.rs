@@ -1,28 +1,22 @@
 //! The PST equals a brute-force evaluation of section 4's formula.
 
+use fresco_core::Rng;
 use fresco_pst::{Field, FieldConfig, Kernel, SampleSet};
-
-/// SplitMix64: a tiny deterministic generator for test data.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Points on a unit sphere with a 4-float attribute that varies with position.
 fn sphere_samples(n: usize, rng: &mut Rng) -> SampleSet {
     let mut s = SampleSet::with_width(4);
     for _ in 0..n {
-        let z = 2.0 * rng.next() - 1.0;
-        let phi = std::f64::consts::TAU * rng.next();
+        let z = 2.0 * rng.uniform() - 1.0;
+        let phi = std::f64::consts::TAU * rng.uniform();
         let r = (1.0 - z * z).sqrt();
         let p = [(r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32];
-        let a = [p[0] * 0.5 + 0.5, rng.next() as f32, (3.0 * p[2]).sin(), 7.0];
+        let a = [
+            p[0] * 0.5 + 0.5,
+            rng.uniform() as f32,
+            (3.0 * p[2]).sin(),
+            7.0,
+        ];
         s.push(p, p, 0, &a);
     }
     s
@@ -61,18 +55,18 @@ fn brute_force(s: &SampleSet, p: [f32; 3], k: usize, kernel: Kernel) -> Vec<f64>
 
 #[test]
 fn lookups_equal_brute_force_knn_evaluation() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let samples = sphere_samples(20_000, &mut rng);
     // Queries near the surface (as when colouring a mesh) and a few far off it.
     let queries: Vec<[f32; 3]> = (0..1500)
         .map(|i| {
-            let z = 2.0 * rng.next() - 1.0;
-            let phi = std::f64::consts::TAU * rng.next();
+            let z = 2.0 * rng.uniform() - 1.0;
+            let phi = std::f64::consts::TAU * rng.uniform();
             let r = (1.0 - z * z).sqrt();
             let scale = if i % 50 == 0 {
                 1.5
             } else {
-                1.0 + 0.01 * (rng.next() - 0.5)
+                1.0 + 0.01 * (rng.uniform() - 0.5)
             };
             [
                 (scale * r * phi.cos()) as f32,
@@ -117,13 +111,13 @@ fn dense_lookups_equal_brute_force() {
     // 3000 samples and 60k queries within a sample spacing of them: ~20 queries per sample,
     // some hundred per tile (a fine mesh over a coarse PST, the apply case): every lookup
     // must equal section 4's formula evaluated over all samples.
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let samples = sphere_samples(3000, &mut rng);
     let spacing = (4.0 * std::f64::consts::PI / 3000.0).sqrt();
     let queries: Vec<[f32; 3]> = (0..60_000)
         .map(|i| {
             let p = samples.positions[i % samples.len()];
-            let mut jitter = || (spacing * (rng.next() - 0.5)) as f32;
+            let mut jitter = || (spacing * (rng.uniform() - 0.5)) as f32;
             [p[0] + jitter(), p[1] + jitter(), p[2] + jitter()]
         })
         .collect();
@@ -154,7 +148,7 @@ fn coherent_stream_lookups_equal_brute_force() {
     // grid, alternately just inside and outside the sphere, so that consecutive queries share
     // grid cells and each query's candidate bound comes from the previous one's k-th
     // distance. Also k larger than the sample count (every sample is a neighbour).
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let samples = sphere_samples(4000, &mut rng);
     let (rows, cols) = (120, 240);
     let mut queries: Vec<[f32; 3]> = Vec::with_capacity(rows * cols);

@@ -24,20 +24,41 @@ use std::collections::HashSet;
 
 use fresco_core::Mesh;
 use fresco_core::Topology;
+use fresco_core::config::{ConfigError, require};
 
 /// What to clean; defaults suit Poisson output headed for parameterisation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CleanupConfig {
-    /// Vertices closer than this fraction of the bbox diagonal are merged (0: exact only).
+    /// Vertices closer than this fraction of the bbox diagonal are merged, in [0, 1].
+    /// Default: `0.0` (exact duplicates only).
     pub weld_tolerance: f64,
-    /// Components with fewer faces are removed.
+    /// Components with fewer faces are removed. Default: `16`.
     pub min_component_faces: usize,
-    /// Components with less than this fraction of the total area are removed.
+    /// Components with less than this fraction of the total area are removed, in [0, 1].
+    /// Default: `0.001`.
     pub min_component_area: f64,
-    /// Keep only the component with the largest area.
+    /// Keep only the component with the largest area. Default: `false`.
     pub keep_largest_component: bool,
-    /// Repair non-manifold edges and vertices (steps 3-4).
+    /// Repair non-manifold edges and vertices (steps 3-4). Default: `true`.
     pub make_manifold: bool,
+}
+
+impl CleanupConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            (0.0..=1.0).contains(&self.weld_tolerance),
+            "weld_tolerance",
+            self.weld_tolerance,
+            "in [0, 1]",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.min_component_area),
+            "min_component_area",
+            self.min_component_area,
+            "in [0, 1]",
+        )
+    }
 }
 
 impl Default for CleanupConfig {
@@ -70,8 +91,9 @@ pub struct CleanupReport {
     pub manifold: bool,
 }
 
-/// Cleans `mesh` in place (see the module documentation).
-pub fn cleanup(mesh: &mut Mesh, cfg: &CleanupConfig) -> CleanupReport {
+/// Cleans `mesh` in place (see the module documentation); an invalid `cfg` leaves it as it was.
+pub fn cleanup(mesh: &mut Mesh, cfg: &CleanupConfig) -> Result<CleanupReport, ConfigError> {
+    cfg.check()?;
     let mut report = CleanupReport::default();
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
     report.welded_vertices = mesh
@@ -120,7 +142,7 @@ pub fn cleanup(mesh: &mut Mesh, cfg: &CleanupConfig) -> CleanupReport {
     let topo = Topology::build(mesh).expect("degenerate faces were removed");
     report.manifold =
         topo.non_manifold_edges().is_empty() && topo.non_manifold_vertices().is_empty();
-    report
+    Ok(report)
 }
 
 /// Removes faces over the same vertex set as an earlier face; returns how many.

@@ -22,21 +22,47 @@
 //! Faces are counter-clockwise and stay so (a collapse only renames a vertex).
 
 use fresco_core::Mesh;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{self, Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
 /// Decimation settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DecimateConfig {
-    /// Stop when this many faces remain (or no collapse is allowed).
+    /// Stop when this many faces remain (or no collapse is allowed). Default: `100_000`.
     pub target_faces: usize,
-    /// Weight of the boundary constraint planes relative to face planes (Garland uses a large
-    /// constant; 1000 keeps boundaries within rounding of where they were on smooth input).
+    /// Weight of the boundary constraint planes relative to face planes, finite and >= 0
+    /// (Garland uses a large constant; 1000 keeps boundaries within rounding of where they
+    /// were on smooth input). Default: `1000.0`.
     pub boundary_weight: f64,
-    /// A surviving face's normal may turn at most to this cosine (0.2: about 78 degrees).
+    /// A surviving face's normal may turn at most to this cosine, in [-1, 1]. Default: `0.2`
+    /// (about 78 degrees).
     pub min_normal_cos: f64,
-    /// Stop when the cheapest collapse costs more than this squared distance (None: no limit).
+    /// Stop when the cheapest collapse costs more than this squared distance (finite, at
+    /// least 0). Default: `None` (no limit).
     pub max_error: Option<f64>,
+}
+
+impl DecimateConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(
+            self.boundary_weight.is_finite() && self.boundary_weight >= 0.0,
+            "boundary_weight",
+            self.boundary_weight,
+            "finite and >= 0",
+        )?;
+        require(
+            (-1.0..=1.0).contains(&self.min_normal_cos),
+            "min_normal_cos",
+            self.min_normal_cos,
+            "in [-1, 1]",
+        )?;
+        if let Some(e) = self.max_error {
+            require(e.is_finite() && e >= 0.0, "max_error", e, "finite and >= 0")?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for DecimateConfig {
@@ -77,6 +103,8 @@ pub enum DecimateError {
     },
     #[error("face {0} repeats a vertex; clean the mesh first (cleanup::cleanup)")]
     DegenerateFace(usize),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Weight of the squared squared edge length added to a collapse's cost to order ties.
@@ -338,6 +366,7 @@ pub fn decimate(
     mesh: &Mesh,
     cfg: &DecimateConfig,
 ) -> Result<(Mesh, DecimateReport), DecimateError> {
+    cfg.check()?;
     let nv = mesh.positions.len();
     for (f, t) in mesh.faces.iter().enumerate() {
         for &v in t {

@@ -1,8 +1,12 @@
-//! fresco-surface: cameras and sparse points to a watertight mesh (paper 003, section 3).
+//! fresco-surface: photos with their cameras to a watertight mesh (paper 003, section 3):
+//! dense depth maps and their fusion into an oriented point cloud, screened Poisson
+//! reconstruction (Kazhdan and Hoppe 2013) on an adaptive octree, iso-surface extraction,
+//! density trimming, mesh clean-up, quadric decimation and orientation towards the cameras.
 //!
-//! Will hold: dense depth maps and their fusion into an oriented point cloud, silhouettes and
-//! the visual hull, screened Poisson reconstruction (Kazhdan and Hoppe 2013) on an adaptive
-//! octree, iso-surface extraction, density trimming, mesh clean-up and quadric decimation.
+//! Dense stereo: [`dense::densify`] (registered photos and sparse points to
+//! `dense/fused.ply`) with [`dense::DenseConfig`]; `dense/` holds its steps (undistortion,
+//! view selection, PatchMatch, fusion, COLMAP depth-map files) and [`dense::evaluate_cloud`],
+//! the judge of a cloud against a ground-truth mesh.
 //!
 //! Screened Poisson: [`reconstruct`] (oriented points to a closed mesh with per-vertex
 //! sampling density) with [`PoissonConfig`]; built from `octree.rs` (sparse band levels),
@@ -13,16 +17,19 @@
 //! - `trim.rs`: [`trim::trim_by_density`] (PoissonRecon's SurfaceTrimmer: clip at a density, drop islands).
 //! - `cleanup.rs`: [`cleanup::cleanup`] (weld, degenerate/duplicate faces, non-manifold repair, small parts).
 //! - `decimate.rs`: [`decimate::decimate`] (Garland–Heckbert quadric edge collapse, boundaries kept).
-//! - `pipeline.rs`: [`pipeline::mesh_from_points`] (points to a clean mesh: normals, Poisson, trim, clean-up, decimation).
+//! - `pipeline.rs`: [`pipeline::mesh_from_points`] (points to a clean mesh: normals, Poisson, trim, clean-up, decimation, orientation).
+//! - `orientation.rs`: [`orientation::face_the_cameras`] (components seen from behind are flipped), [`orientation::back_face_pixels`].
 //! - `metrics.rs`: [`metrics::mesh_distance`], [`metrics::point_set_distance`] (Chamfer, Hausdorff, F-score).
 
 pub mod bspline;
 pub mod cleanup;
 pub mod decimate;
+pub mod dense;
 pub mod isosurface;
 pub mod metrics;
 pub mod normals;
 pub mod octree;
+pub mod orientation;
 pub mod pipeline;
 pub mod poisson;
 pub mod solver;

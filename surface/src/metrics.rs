@@ -13,8 +13,10 @@
 //! - [`mesh_distance`]: mesh against mesh (the second is the reference).
 //! - [`point_set_distance`]: point set against point set (nearest neighbours, no surfaces).
 //! - [`surface_samples`]: the samples themselves.
+//! - [`point_to_mesh_distances`]: distance of each query point to a mesh's surface.
 
 use fresco_core::Mesh;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::knn::{KnnError, PointIndex3};
 use fresco_core::nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -25,10 +27,24 @@ const CANDIDATES: usize = 6;
 /// Sampling density and F-score threshold.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DistanceConfig {
-    /// Approximate number of surface samples per mesh.
+    /// Approximate number of surface samples per mesh, >= 1. Default: `200_000`.
     pub samples: usize,
-    /// F-score threshold as a fraction of the reference's bbox diagonal.
+    /// F-score threshold as a fraction of the reference's bbox diagonal, finite and >= 0.
+    /// Default: `0.005`.
     pub f_threshold: f64,
+}
+
+impl DistanceConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(self.samples >= 1, "samples", self.samples, ">= 1")?;
+        require(
+            self.f_threshold.is_finite() && self.f_threshold >= 0.0,
+            "f_threshold",
+            self.f_threshold,
+            "finite and >= 0",
+        )
+    }
 }
 
 impl Default for DistanceConfig {
@@ -72,6 +88,8 @@ pub enum MetricsError {
     Empty(&'static str),
     #[error(transparent)]
     Knn(#[from] KnnError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Area-weighted samples of a mesh; `face[i]` is the face sample `i` lies on.
@@ -129,6 +147,7 @@ pub fn mesh_distance(
     b: &Mesh,
     cfg: &DistanceConfig,
 ) -> Result<SurfaceDistance, MetricsError> {
+    cfg.check()?;
     let sa = surface_samples(a, cfg.samples);
     let sb = surface_samples(b, cfg.samples);
     if sa.points.is_empty() {
@@ -185,6 +204,21 @@ pub fn point_set_distance(
         f_threshold * diagonal,
         diagonal,
     ))
+}
+
+/// Distance of each of `queries` to the surface of `mesh`, through about `samples` surface
+/// samples (see the module documentation).
+pub fn point_to_mesh_distances(
+    queries: &[Point3<f64>],
+    mesh: &Mesh,
+    samples: usize,
+) -> Result<Vec<f64>, MetricsError> {
+    let s = surface_samples(mesh, samples);
+    if s.points.is_empty() {
+        return Err(MetricsError::Empty("the mesh"));
+    }
+    let index = PointIndex3::build(&s.points)?;
+    Ok(to_mesh(queries, mesh, &s, &index))
 }
 
 /// Distance of each query point to the surface of `mesh`, whose samples are `samples`
@@ -353,14 +387,9 @@ mod tests {
             Point3::new(1.0, 0.2, 0.1),
             Point3::new(0.3, 0.9, -0.2),
         ];
-        let mut seed = 1u64;
+        let mut rng = fresco_core::Rng::new(1);
         for _ in 0..200 {
-            let mut r = || {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64 * 3.0 - 1.0
-            };
+            let mut r = || rng.range(-1.0, 2.0);
             let p = Point3::new(r(), r(), r());
             let exact = (closest_on_triangle(&p, &t[0], &t[1], &t[2]) - p).norm();
             let brute = brute_closest(&p, t);

@@ -17,6 +17,7 @@
 
 use std::collections::VecDeque;
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::knn::{KnnError, PointIndex3};
 use fresco_core::nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 use petgraph::algo::min_spanning_tree;
@@ -27,12 +28,26 @@ use rayon::prelude::*;
 /// Settings of normal estimation and orientation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NormalConfig {
-    /// Neighbours (the point itself included) for the PCA plane fit. 10-30 is the usual range:
-    /// fewer follow noise, more blur sharp features.
+    /// Neighbours (the point itself included) for the PCA plane fit, >= 3. 10-30 is the
+    /// usual range: fewer follow noise, more blur sharp features. Default: `16`.
     pub k: usize,
-    /// Neighbours per point in the orientation graph (Hoppe uses the k-NN graph plus the
-    /// Euclidean MST; a slightly denser k-NN graph connects well-sampled surfaces alone).
+    /// Neighbours per point in the orientation graph, >= 1 (Hoppe uses the k-NN graph plus
+    /// the Euclidean MST; a slightly denser k-NN graph connects well-sampled surfaces alone).
+    /// Default: `10`.
     pub orientation_k: usize,
+}
+
+impl NormalConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(self.k >= 3, "k", self.k, ">= 3")?;
+        require(
+            self.orientation_k >= 1,
+            "orientation_k",
+            self.orientation_k,
+            ">= 1",
+        )
+    }
 }
 
 impl Default for NormalConfig {
@@ -49,12 +64,12 @@ impl Default for NormalConfig {
 pub enum NormalError {
     #[error("normal estimation needs at least 3 points, got {0}")]
     TooFewPoints(usize),
-    #[error("normal estimation needs k >= 3 neighbours, got {0}")]
-    SmallK(usize),
     #[error("{points} points but {normals} normals")]
     LengthMismatch { points: usize, normals: usize },
     #[error(transparent)]
     Knn(#[from] KnnError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Unit normals by PCA over the `cfg.k` nearest neighbours, not yet consistently oriented
@@ -64,11 +79,9 @@ pub fn estimate_normals(
     points: &[Point3<f64>],
     cfg: &NormalConfig,
 ) -> Result<Vec<Vector3<f64>>, NormalError> {
+    cfg.check()?;
     if points.len() < 3 {
         return Err(NormalError::TooFewPoints(points.len()));
-    }
-    if cfg.k < 3 {
-        return Err(NormalError::SmallK(cfg.k));
     }
     let index = PointIndex3::build(points)?;
     let table = index.k_nearest_batch(points, cfg.k);
@@ -133,6 +146,7 @@ pub fn orient_normals(
     normals: &mut [Vector3<f64>],
     cfg: &NormalConfig,
 ) -> Result<OrientationReport, NormalError> {
+    cfg.check()?;
     if points.len() != normals.len() {
         return Err(NormalError::LengthMismatch {
             points: points.len(),

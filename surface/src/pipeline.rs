@@ -9,35 +9,49 @@
 //! 4. density trimming (`trim.rs`), if a trim value is set;
 //! 5. clean-up (`cleanup.rs`): small islands, degenerate faces, non-manifold repair;
 //! 6. quadric decimation (`decimate.rs`) to the face budget, if the mesh is larger;
+//! 7. orientation (`orientation.rs`): when the cameras that photographed the surface are
+//!    given, every component they see more from behind than from the front is flipped, so
+//!    that meshes made from photos face their cameras;
 //!
 //! and returns the mesh with vertex normals and a report of every stage.
 
 use std::time::Instant;
 
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Point3, Vector3};
-use fresco_core::{Mesh, Progress};
+use fresco_core::{CamFromWorld, Camera, Mesh, Progress};
 
 use crate::cleanup::{CleanupConfig, CleanupReport, cleanup};
 use crate::decimate::{DecimateConfig, DecimateError, DecimateReport, decimate};
 use crate::normals::{NormalConfig, NormalError, estimate_normals, orient_normals};
+use crate::orientation::{OrientationReport, face_the_cameras};
 use crate::poisson::{PoissonConfig, PoissonError, reconstruct};
 use crate::trim::{TrimConfig, TrimError, TrimReport, trim_by_density};
 
 /// Fewer usable points than this cannot describe a surface.
 pub const MIN_POINTS: usize = 10;
 
-/// Settings of every stage; defaults as `fresco mesh`.
+/// Settings of every stage; `fresco mesh` takes its defaults from here.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshConfig {
+    /// Default: `PoissonConfig::default()`.
     pub poisson: PoissonConfig,
     /// Estimate normals when the points have none (otherwise that is an error).
+    /// Default: `true`.
     pub estimate_normals: bool,
+    /// Default: `NormalConfig::default()`.
     pub normals: NormalConfig,
-    /// Density trimming; `None` keeps the whole Poisson surface.
+    /// Density trimming; `None` keeps the whole Poisson surface. Default:
+    /// `Some(TrimConfig { below_median: Some(1.0), ..TrimConfig::default() })`, a cut where
+    /// the sampling density falls to a quarter of the median (see `TrimConfig::below_median`).
     pub trim: Option<TrimConfig>,
+    /// Default: `CleanupConfig::default()`.
     pub cleanup: CleanupConfig,
-    /// Face budget; `None` keeps every face.
+    /// Face budget, >= 1; `None` keeps every face. Default: `Some(200_000)`.
     pub target_faces: Option<usize>,
+    /// The cameras (intrinsics and pose) the points were photographed from; when given, the
+    /// mesh is oriented to face them (step 7). Default none.
+    pub cameras: Vec<(Camera, CamFromWorld)>,
 }
 
 impl Default for MeshConfig {
@@ -46,14 +60,30 @@ impl Default for MeshConfig {
             poisson: PoissonConfig::default(),
             estimate_normals: true,
             normals: NormalConfig::default(),
-            // A quarter of the typical sampling density (see `TrimConfig::below_median`).
             trim: Some(TrimConfig {
                 below_median: Some(1.0),
                 ..TrimConfig::default()
             }),
             cleanup: CleanupConfig::default(),
             target_faces: Some(200_000),
+            cameras: Vec::new(),
         }
+    }
+}
+
+impl MeshConfig {
+    /// Validates every field, the nested configurations' too (named `poisson.depth`, ...).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.poisson.check().map_err(|e| e.within("poisson"))?;
+        self.normals.check().map_err(|e| e.within("normals"))?;
+        if let Some(trim) = &self.trim {
+            trim.check().map_err(|e| e.within("trim"))?;
+        }
+        self.cleanup.check().map_err(|e| e.within("cleanup"))?;
+        if let Some(faces) = self.target_faces {
+            require(faces >= 1, "target_faces", faces, ">= 1")?;
+        }
+        Ok(())
     }
 }
 
@@ -74,6 +104,8 @@ pub struct MeshReport {
     pub trim: Option<TrimReport>,
     pub cleanup: CleanupReport,
     pub decimate: Option<DecimateReport>,
+    /// Step 7, when cameras were given.
+    pub orientation: Option<OrientationReport>,
     pub faces: usize,
     pub vertices: usize,
     pub seconds_normals: f64,
@@ -81,6 +113,7 @@ pub struct MeshReport {
     pub seconds_trim: f64,
     pub seconds_cleanup: f64,
     pub seconds_decimate: f64,
+    pub seconds_orientation: f64,
 }
 
 /// Why no mesh could be made.
@@ -99,18 +132,24 @@ pub enum MeshFromPointsError {
     LengthMismatch { points: usize, normals: usize },
     #[error("the points have no normals and normal estimation is disabled")]
     MissingNormals,
+    // The stage errors below are shown in the message after the stage's name, so they are
+    // not also exposed as `source` (anyhow's `{:#}` would print them twice).
     #[error("normal estimation: {0}")]
-    Normals(#[from] NormalError),
+    Normals(NormalError),
     #[error("Poisson reconstruction: {0}")]
-    Poisson(#[from] PoissonError),
+    Poisson(PoissonError),
     #[error("trimming: {0}")]
-    Trim(#[from] TrimError),
+    Trim(TrimError),
     #[error("decimation: {0}")]
-    Decimate(#[from] DecimateError),
+    Decimate(DecimateError),
+    #[error("orienting the mesh towards its cameras: {0}")]
+    Orientation(fresco_core::raster::RasterError),
     #[error(
         "nothing is left after trimming at density {0}: lower --trim (or raise --trim-below-median)"
     )]
     TrimmedAway(f32),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Oriented (or bare, if `normals` is `None`) points to a clean mesh; see the module
@@ -121,6 +160,7 @@ pub fn mesh_from_points(
     cfg: &MeshConfig,
     progress: &dyn Progress,
 ) -> Result<(Mesh, MeshReport), MeshFromPointsError> {
+    cfg.check()?;
     if let Some(n) = normals
         && n.len() != points.len()
     {
@@ -165,8 +205,9 @@ pub fn mesh_from_points(
             return Err(MeshFromPointsError::MissingNormals);
         }
         progress.begin("normals", 0);
-        nrm = estimate_normals(&pts, &cfg.normals)?;
-        let o = orient_normals(&pts, &mut nrm, &cfg.normals)?;
+        nrm = estimate_normals(&pts, &cfg.normals).map_err(MeshFromPointsError::Normals)?;
+        let o =
+            orient_normals(&pts, &mut nrm, &cfg.normals).map_err(MeshFromPointsError::Normals)?;
         progress.end();
         report.normals_estimated = true;
         report.normals_flipped = o.flipped;
@@ -174,7 +215,8 @@ pub fn mesh_from_points(
     report.seconds_normals = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    let out = reconstruct(&pts, &nrm, &cfg.poisson, progress)?;
+    let out =
+        reconstruct(&pts, &nrm, &cfg.poisson, progress).map_err(MeshFromPointsError::Poisson)?;
     report.seconds_poisson = t.elapsed().as_secs_f64();
     report.poisson_faces = out.mesh.faces.len();
     report.poisson_vertices = out.mesh.positions.len();
@@ -183,7 +225,8 @@ pub fn mesh_from_points(
 
     let t = Instant::now();
     if let Some(trim) = &cfg.trim {
-        let trimmed = trim_by_density(&mesh, &out.vertex_density, trim)?;
+        let trimmed =
+            trim_by_density(&mesh, &out.vertex_density, trim).map_err(MeshFromPointsError::Trim)?;
         if trimmed.mesh.faces.is_empty() {
             return Err(MeshFromPointsError::TrimmedAway(trimmed.report.threshold));
         }
@@ -193,7 +236,7 @@ pub fn mesh_from_points(
     report.seconds_trim = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    report.cleanup = cleanup(&mut mesh, &cfg.cleanup);
+    report.cleanup = cleanup(&mut mesh, &cfg.cleanup)?;
     report.seconds_cleanup = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -207,12 +250,21 @@ pub fn mesh_from_points(
                 target_faces: target,
                 ..DecimateConfig::default()
             },
-        )?;
+        )
+        .map_err(MeshFromPointsError::Decimate)?;
         progress.end();
         mesh = m;
         report.decimate = Some(r);
     }
     report.seconds_decimate = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    if !cfg.cameras.is_empty() {
+        progress.begin("orientation", 0);
+        report.orientation = Some(face_the_cameras(&mut mesh, &cfg.cameras).map_err(MeshFromPointsError::Orientation)?);
+        progress.end();
+    }
+    report.seconds_orientation = t.elapsed().as_secs_f64();
     mesh.compute_vertex_normals();
     report.faces = mesh.faces.len();
     report.vertices = mesh.positions.len();

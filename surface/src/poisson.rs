@@ -48,11 +48,22 @@
 //!
 //! Iso-value: the area-weighted average of `chi` at the samples (SPSR section 4.4).
 //! Extraction: marching cubes on the finest level (`isosurface.rs`).
+//!
+//! [`reconstruct`] runs the method as named steps over one `Problem` (the samples in the unit
+//! cube and the octree levels), each a function with a unit test of its own:
+//! 1. `usable_samples` and `UnitCube::around`: drop unusable samples, map into the unit cube;
+//! 2. `estimate_density`: sampling density, density depth and leaf depth per sample;
+//! 3. `build_levels`: samples sorted by cell, sample cells per depth, full and band levels;
+//! 4. `splat_normal_field`: the normal field `V` as each level's hat coefficients;
+//! 5. `restrict_divergence`: the part of the right-hand side from finer levels;
+//! 6. `solve_cascadic`: coarse-to-fine CG, level by level (`prolong`, `solve_level`);
+//! 7. `iso_value` and `extract`: the level set and its mesh in the input's coordinates.
 
 use std::time::Instant;
 
 use fresco_core::Mesh;
 use fresco_core::Progress;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use thiserror::Error;
@@ -62,27 +73,90 @@ use crate::isosurface;
 use crate::octree::{self, Level, MISSING, Map, SortedKeys};
 use crate::solver::{self, CgReport};
 
-/// Settings of [`reconstruct`]; the defaults are PoissonRecon's.
+/// Settings of [`reconstruct`]. Where PoissonRecon has the same setting, the defaults are
+/// its defaults, except `depth` (PoissonRecon's is 8).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PoissonConfig {
     /// Finest octree depth: the unit cube around the samples is cut into `2^depth` cells per
-    /// axis where there are samples. 2 ..= 12.
+    /// axis where there are samples; in 2..=12. Default: `9`.
     pub depth: u32,
-    /// Screening weight (SPSR's alpha at the finest level); 0 gives unscreened Poisson.
+    /// Screening weight (SPSR's alpha at the finest level), finite and >= 0; 0 gives
+    /// unscreened Poisson. Default: `4.0` (PoissonRecon's `--pointWeight`).
     pub point_weight: f64,
-    /// How many samples a node should hold: the unit of the density written per vertex
-    /// (`PoissonOutput::vertex_density` is the depth at which a node would hold this many).
+    /// How many samples a node should hold, finite and > 0: the unit of the density written
+    /// per vertex (`PoissonOutput::vertex_density` is the depth at which a node would hold
+    /// this many). Default: `1.5` (PoissonRecon's `--samplesPerNode`).
     pub samples_per_node: f64,
-    /// The cube is the samples' bounding box enlarged by this factor (>= 1).
+    /// The cube is the samples' bounding box enlarged by this factor, finite and >= 1.
+    /// Default: `1.1` (PoissonRecon's `--scale`).
     pub scale: f64,
-    /// Levels up to this depth cover the whole cube (coarse, cheap, they carry the far field).
+    /// Levels up to this depth cover the whole cube (coarse, cheap, they carry the far
+    /// field); in 0..=12, and at most `depth` is used. Default: `5` (PoissonRecon's
+    /// `--fullDepth`).
     pub full_depth: u32,
-    /// CG iterations per band level (the cascade only corrects detail there).
+    /// CG iterations per band level (the cascade only corrects detail there), >= 1.
+    /// Default: `40`.
     pub cg_iterations: usize,
-    /// CG iterations on the full levels.
+    /// CG iterations on the full levels, >= 1. Default: `200`.
     pub coarse_cg_iterations: usize,
-    /// Relative residual at which a level's CG stops early.
+    /// Relative residual at which a level's CG stops early, finite and >= 0.
+    /// Default: `0.0001`.
     pub cg_tolerance: f64,
+}
+
+impl PoissonConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let finite_at_least = |v: f64, lo: f64| v.is_finite() && v >= lo;
+        require(
+            (2..=12).contains(&self.depth),
+            "depth",
+            self.depth,
+            "in 2..=12",
+        )?;
+        require(
+            finite_at_least(self.point_weight, 0.0),
+            "point_weight",
+            self.point_weight,
+            "finite and >= 0",
+        )?;
+        require(
+            self.samples_per_node.is_finite() && self.samples_per_node > 0.0,
+            "samples_per_node",
+            self.samples_per_node,
+            "finite and > 0",
+        )?;
+        require(
+            finite_at_least(self.scale, 1.0),
+            "scale",
+            self.scale,
+            "finite and >= 1",
+        )?;
+        require(
+            self.full_depth <= 12,
+            "full_depth",
+            self.full_depth,
+            "in 0..=12",
+        )?;
+        require(
+            self.cg_iterations >= 1,
+            "cg_iterations",
+            self.cg_iterations,
+            ">= 1",
+        )?;
+        require(
+            self.coarse_cg_iterations >= 1,
+            "coarse_cg_iterations",
+            self.coarse_cg_iterations,
+            ">= 1",
+        )?;
+        require(
+            finite_at_least(self.cg_tolerance, 0.0),
+            "cg_tolerance",
+            self.cg_tolerance,
+            "finite and >= 0",
+        )
+    }
 }
 
 impl Default for PoissonConfig {
@@ -158,8 +232,8 @@ pub enum PoissonError {
     TooFewPoints { usable: usize, dropped: usize },
     #[error("all points coincide: the point cloud has no extent")]
     NoExtent,
-    #[error("invalid Poisson setting: {0}")]
-    InvalidConfig(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// Samples are splatted 1.25 levels coarser than their density depth (a kernel 2^1.25 = 2.4
@@ -182,29 +256,6 @@ const MIN_SAMPLES: usize = 10;
 /// sample count and `sigma * h^2` for a plane through the density grid (derivation in
 /// `Density`).
 const KERNEL_PLANE_FACTOR: f64 = 0.55;
-
-fn check_config(cfg: &PoissonConfig) -> Result<(), PoissonError> {
-    let bad = |m: String| Err(PoissonError::InvalidConfig(m));
-    if !(2..=12).contains(&cfg.depth) {
-        return bad(format!("depth {} is outside 2..=12", cfg.depth));
-    }
-    if !(cfg.point_weight >= 0.0 && cfg.point_weight.is_finite()) {
-        return bad(format!("point weight {} must be >= 0", cfg.point_weight));
-    }
-    if !(cfg.samples_per_node > 0.0 && cfg.samples_per_node.is_finite()) {
-        return bad(format!(
-            "samples per node {} must be > 0",
-            cfg.samples_per_node
-        ));
-    }
-    if !(cfg.scale >= 1.0 && cfg.scale.is_finite()) {
-        return bad(format!("scale {} must be >= 1", cfg.scale));
-    }
-    if cfg.cg_tolerance.is_nan() || cfg.cg_tolerance < 0.0 {
-        return bad(format!("CG tolerance {} must be >= 0", cfg.cg_tolerance));
-    }
-    Ok(())
-}
 
 /// Sampling density estimated by splatting the samples with a quadratic B-spline on a dense
 /// grid of depth `kernel_depth = min(depth - 2, 8)` (PoissonRecon's kernel depth is also two
@@ -387,18 +438,20 @@ struct LevelSystem<'a> {
 }
 
 impl<'a> LevelSystem<'a> {
-    #[allow(clippy::too_many_arguments)]
+    /// The operator of level `d` with screening weight `alpha` and per-sample areas `area`;
+    /// `ring` is the level's neighbour table when already built.
     fn new(
-        level: &'a Level,
-        cells: &SortedKeys,
-        samples: &[[f64; 3]],
-        sample_keys: &[u64],
+        problem: &'a Problem,
+        d: u32,
         area: &[f64],
         alpha: f64,
-        ring_offsets: &[[i32; 3]],
         ring: Option<Vec<u32>>,
     ) -> LevelSystem<'a> {
-        let d = level.depth;
+        let level = &problem.levels[d as usize];
+        let cells = &problem.cells[d as usize];
+        let samples = &problem.samples;
+        let ring_offsets = self::ring();
+        let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
         let h = 1.0 / (1u64 << d) as f64;
         let mut stencil = [0.0; 27];
         for (o, off) in ring_offsets.iter().enumerate() {
@@ -446,7 +499,7 @@ impl<'a> LevelSystem<'a> {
         let c = octree::unpack(self.level.active.keys[i]);
         let n = self.level.n();
         let boundary = bspline::on_boundary(c, n);
-        let offs = RING.get_or_init(octree::ring27);
+        let offs = ring();
         let mut s = 0.0;
         for (o, &j) in row.iter().enumerate() {
             if j == MISSING || (!include_ghosts && j as usize >= na) {
@@ -530,15 +583,20 @@ impl<'a> LevelSystem<'a> {
 
 static RING: std::sync::OnceLock<Vec<[i32; 3]>> = std::sync::OnceLock::new();
 
+/// The 27 offsets of a lattice vertex's neighbourhood (`octree::ring27`), built once.
+fn ring() -> &'static [[i32; 3]] {
+    RING.get_or_init(octree::ring27)
+}
+
 /// Screened Poisson reconstruction of the oriented points (`normals` need not be unit
-/// length; only their direction is used).
+/// length; only their direction is used): the steps of the module documentation, in order.
 pub fn reconstruct(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     cfg: &PoissonConfig,
     progress: &dyn Progress,
 ) -> Result<PoissonOutput, PoissonError> {
-    check_config(cfg)?;
+    cfg.check()?;
     if points.len() != normals.len() {
         return Err(PoissonError::LengthMismatch {
             points: points.len(),
@@ -546,7 +604,94 @@ pub fn reconstruct(
         });
     }
     let t0 = Instant::now();
-    // Usable samples.
+    let UsableSamples {
+        points,
+        normals,
+        dropped,
+    } = usable_samples(points, normals)?;
+    let cube = UnitCube::around(&points, cfg.scale)?;
+    let unit: Vec<[f64; 3]> = points.par_iter().map(|p| cube.to_unit(p)).collect();
+    drop(points);
+    let density = estimate_density(&unit, cfg);
+    let problem = build_levels(unit, normals, density, cfg);
+    let seconds_octree = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let field = splat_normal_field(&problem);
+    // The finest level's neighbour table, built once for the right-hand side and the solve.
+    let finest_ring = problem
+        .finest()
+        .lookup_from(&problem.finest().active, Map::Same, ring());
+    let finer_part = restrict_divergence(&problem, &field, &finest_ring);
+    let (solution, levels) =
+        solve_cascadic(&problem, &field, &finer_part, finest_ring, cfg, progress);
+    let iso = iso_value(&problem, &solution[problem.depth as usize]);
+    let seconds_solve = t1.elapsed().as_secs_f64();
+
+    let t2 = Instant::now();
+    let (mesh, vertex_density, flood_cells) =
+        extract(&problem, &solution, iso, &cube, cfg, progress);
+    let seconds_extract = t2.elapsed().as_secs_f64();
+    Ok(PoissonOutput {
+        mesh,
+        vertex_density,
+        stats: PoissonStats {
+            samples: problem.samples.len(),
+            depth: problem.depth,
+            dropped,
+            levels,
+            iso_value: iso,
+            flood_cells,
+            seconds_octree,
+            seconds_solve,
+            seconds_extract,
+        },
+    })
+}
+
+/// What every step after the density estimate shares: the samples in the unit cube, sorted
+/// by their finest cell, with what is known of each, and the octree levels.
+struct Problem {
+    /// Sample positions in the unit cube.
+    samples: Vec<[f64; 3]>,
+    /// Unit normals, one per sample.
+    normals: Vec<[f64; 3]>,
+    /// Surface area each sample stands for, `A_p = 1 / sigma_p`.
+    area: Vec<f64>,
+    /// `t_p = log4(sigma_p / samples_per_node)`, the depth at which a node crossing the
+    /// surface at the sample holds `samples_per_node` samples.
+    density_depth: Vec<f64>,
+    /// The finest level with functions solved for around the sample.
+    leaf_depth: Vec<u32>,
+    /// Finest depth used (at most the requested one).
+    depth: u32,
+    /// Sample cells per depth `0 ..= depth`.
+    cells: Vec<SortedKeys>,
+    /// The octree level of each depth `0 ..= depth`.
+    levels: Vec<Level>,
+    /// The density grid, evaluated again at the output vertices.
+    density: Density,
+}
+
+impl Problem {
+    fn finest(&self) -> &Level {
+        &self.levels[self.depth as usize]
+    }
+}
+
+/// Samples with a finite position and a unit normal, and how many others were dropped.
+struct UsableSamples {
+    points: Vec<Point3<f64>>,
+    normals: Vec<Vector3<f64>>,
+    dropped: usize,
+}
+
+/// The usable samples (finite position, finite non-zero normal) with unit normals, and how
+/// many were dropped; an error when fewer than [`MIN_SAMPLES`] remain.
+fn usable_samples(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+) -> Result<UsableSamples, PoissonError> {
     let mut pts = Vec::with_capacity(points.len());
     let mut nrm = Vec::with_capacity(points.len());
     for (p, n) in points.iter().zip(normals) {
@@ -563,34 +708,74 @@ pub fn reconstruct(
             dropped,
         });
     }
-    let bbox = fresco_core::mesh::Aabb::from_points(&pts).expect("non-empty");
-    let ext = bbox.extent();
-    let size = ext.x.max(ext.y).max(ext.z) * cfg.scale;
-    if size <= 0.0 || !size.is_finite() {
-        return Err(PoissonError::NoExtent);
+    Ok(UsableSamples {
+        points: pts,
+        normals: nrm,
+        dropped,
+    })
+}
+
+/// The cube the reconstruction runs in: the samples' bounding box enlarged by `scale`
+/// around its centre, made cubic; mapped to `[0, 1]^3`.
+struct UnitCube {
+    origin: Point3<f64>,
+    size: f64,
+}
+
+impl UnitCube {
+    fn around(points: &[Point3<f64>], scale: f64) -> Result<UnitCube, PoissonError> {
+        let bbox = fresco_core::mesh::Aabb::from_points(points).expect("non-empty");
+        let ext = bbox.extent();
+        let size = ext.x.max(ext.y).max(ext.z) * scale;
+        if size <= 0.0 || !size.is_finite() {
+            return Err(PoissonError::NoExtent);
+        }
+        let origin = bbox.center() - Vector3::repeat(size / 2.0);
+        Ok(UnitCube { origin, size })
     }
-    let origin = bbox.center() - Vector3::repeat(size / 2.0);
-    let to_unit = |p: &Point3<f64>| {
-        let v = (p - origin) / size;
+
+    fn to_unit(&self, p: &Point3<f64>) -> [f64; 3] {
+        let v = (p - self.origin) / self.size;
         [v.x, v.y, v.z]
-    };
+    }
+
+    /// The world point of lattice position `p` of a level of spacing `h`.
+    fn to_world(&self, p: [f64; 3], h: f64) -> Point3<f64> {
+        self.origin + Vector3::new(p[0], p[1], p[2]) * (h * self.size)
+    }
+}
+
+/// Step 1: the sampling density `sigma_p` (samples per unit area) at each sample, its
+/// density depth `t_p` and leaf depth, and the finest depth the tree needs.
+struct SampleDensity {
+    grid: Density,
+    sigma: Vec<f64>,
+    density_depth: Vec<f64>,
+    leaf_depth: Vec<u32>,
+    depth: u32,
+}
+
+/// `t = log4(sigma / samples_per_node)`.
+fn density_depth_of(sigma: f64, samples_per_node: f64) -> f64 {
+    0.5 * (sigma / samples_per_node).log2()
+}
+
+/// Step 1, density estimation (SPSR section 4.1 with PoissonRecon's adaptive depth).
+///
+/// The density depth `t = log4(sigma / samples_per_node)` is the depth at which a node
+/// crossing the surface holds `samples_per_node` samples. A sample's leaf, the finest level
+/// that holds functions around it, is the level nearest its density depth: `round(t)`, i.e. a
+/// level is refined where its nodes hold at least `samples_per_node / 2` samples.
+/// PoissonRecon refines to `ceil(t)` (down to `samples_per_node / 4`) but with the smoother
+/// degree-2 basis; with degree 1, the extra level's functions follow the individual samples.
+/// Measured on the 200k-sample sphere at depth 9 (t ~ 7.8, bench/poisson.sh): signed-distance
+/// std 1.07e-4 with every level refined where there are samples, 9.1e-5 with `ceil(t)`,
+/// 7.6e-5 with `round(t)`.
+fn estimate_density(unit: &[[f64; 3]], cfg: &PoissonConfig) -> SampleDensity {
     let requested = cfg.depth;
     let full_depth = cfg.full_depth.min(requested);
-    let unit: Vec<[f64; 3]> = pts.par_iter().map(to_unit).collect();
-
-    // Sampling density, per-sample area and leaf depth.
-    // The density depth t = log4(sigma / samples_per_node): the depth at which a node crossing
-    // the surface holds `samples_per_node` samples. A sample's leaf, the finest level that
-    // holds functions around it, is the level nearest its density depth: round(t), i.e.
-    // a level is refined where its nodes hold at least samples_per_node / 2 samples.
-    // PoissonRecon refines to ceil(t) (down to samples_per_node / 4) but with the smoother
-    // degree-2 basis; with degree 1, the extra level's functions follow the individual
-    // samples. Measured on the 200k-sample sphere at depth 9 (t ~ 7.8, bench/poisson.sh):
-    // signed-distance std 1.07e-4 with every level refined where there are samples,
-    // 9.1e-5 with ceil(t), 7.6e-5 with round(t).
-    let density_depth_of = |sg: f64| 0.5 * (sg / cfg.samples_per_node).log2();
     let estimate = |kernel_depth: u32| -> (Density, Vec<f64>) {
-        let density = Density::build(kernel_depth, &unit);
+        let density = Density::build(kernel_depth, unit);
         let sigma = unit
             .par_iter()
             .map(|&u| density.sigma(u).max(1e-300))
@@ -602,59 +787,87 @@ pub fn reconstruct(
     // estimate is noisy (the kernel's 3x3 cells hold ~4 samples for 20k on the sphere at
     // depth 9), so it is redone two levels above the median sample's leaf.
     let mut kernel_depth = requested.saturating_sub(2).clamp(1, 8);
-    let (mut density, mut sigma) = estimate(kernel_depth);
+    let (mut grid, mut sigma) = estimate(kernel_depth);
     {
-        let mut t: Vec<f64> = sigma.par_iter().map(|&sg| density_depth_of(sg)).collect();
+        let mut t: Vec<f64> = sigma
+            .par_iter()
+            .map(|&sg| density_depth_of(sg, cfg.samples_per_node))
+            .collect();
         let mid = t.len() / 2;
         let median = *t.select_nth_unstable_by(mid, f64::total_cmp).1;
         let data_depth = (median.round().max(0.0) as u32).clamp(full_depth, requested);
         let k = data_depth.saturating_sub(2).clamp(1, 8);
         if k < kernel_depth {
             kernel_depth = k;
-            (density, sigma) = estimate(kernel_depth);
+            (grid, sigma) = estimate(kernel_depth);
         }
     }
-    let density_depth_u: Vec<f64> = sigma.par_iter().map(|&sg| density_depth_of(sg)).collect();
-    let leaf_u: Vec<u32> = density_depth_u
+    let density_depth: Vec<f64> = sigma
+        .par_iter()
+        .map(|&sg| density_depth_of(sg, cfg.samples_per_node))
+        .collect();
+    let leaf_depth: Vec<u32> = density_depth
         .par_iter()
         .map(|&t| (t.round().max(0.0) as u32).clamp(full_depth, requested))
         .collect();
     // The requested depth is an upper bound: levels no sample's leaf reaches are left out
     // (the mesh is then extracted at the finest level used, as PoissonRecon's adaptive tree
     // does).
-    let depth = leaf_u
+    let depth = leaf_depth
         .iter()
         .copied()
         .max()
         .unwrap_or(requested)
         .max(full_depth.max(2).min(requested));
-    // Sort samples by their finest cell for memory locality.
+    SampleDensity {
+        grid,
+        sigma,
+        density_depth,
+        leaf_depth,
+        depth,
+    }
+}
+
+/// Step 2, octree levels: the samples sorted by their finest cell (for memory locality), the
+/// sample cells of every depth (each the parents of the next finer), and the levels: the
+/// whole lattice up to `full_depth`, the band around the sample cells below (`octree.rs`).
+fn build_levels(
+    unit: Vec<[f64; 3]>,
+    normals: Vec<Vector3<f64>>,
+    density: SampleDensity,
+    cfg: &PoissonConfig,
+) -> Problem {
+    let depth = density.depth;
+    let full_depth = cfg.full_depth.min(cfg.depth);
     let mut order: Vec<(u64, u32)> = unit
         .par_iter()
         .enumerate()
         .map(|(i, &u)| (cell_key(u, depth), i as u32))
         .collect();
     order.par_sort_unstable();
-    let samples: Vec<[f64; 3]> = order.iter().map(|&(_, i)| unit[i as usize]).collect();
+    let by_order = |i: &(u64, u32)| i.1 as usize;
+    let samples: Vec<[f64; 3]> = order.iter().map(|o| unit[by_order(o)]).collect();
     let snormals: Vec<[f64; 3]> = order
         .iter()
-        .map(|&(_, i)| {
-            let n = nrm[i as usize];
+        .map(|o| {
+            let n = normals[by_order(o)];
             [n.x, n.y, n.z]
         })
         .collect();
     let area: Vec<f64> = order
         .iter()
-        .map(|&(_, i)| 1.0 / sigma[i as usize])
+        .map(|o| 1.0 / density.sigma[by_order(o)])
         .collect();
     let density_depth: Vec<f64> = order
         .iter()
-        .map(|&(_, i)| density_depth_u[i as usize])
+        .map(|o| density.density_depth[by_order(o)])
         .collect();
-    let leaf_depth: Vec<u32> = order.iter().map(|&(_, i)| leaf_u[i as usize]).collect();
-    drop((unit, sigma, density_depth_u, leaf_u));
+    let leaf_depth: Vec<u32> = order
+        .iter()
+        .map(|o| density.leaf_depth[by_order(o)])
+        .collect();
+    drop((unit, normals));
 
-    // Octree levels: sample cells per depth, then the band (or full) vertex sets.
     let mut cells: Vec<SortedKeys> = vec![SortedKeys::default(); depth as usize + 1];
     cells[depth as usize] = SortedKeys::from_sorted({
         let mut k: Vec<u64> = order.iter().map(|o| o.0).collect();
@@ -681,86 +894,102 @@ pub fn reconstruct(
             }
         })
         .collect();
-    let seconds_octree = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
+    Problem {
+        samples,
+        normals: snormals,
+        area,
+        density_depth,
+        leaf_depth,
+        depth,
+        cells,
+        levels,
+        density: density.grid,
+    }
+}
 
-    // The normal field V = sum_l V_l. Each sample is splatted at its density depth
-    // t_p = log4(sigma_p / samples_per_node) (the depth at which a node holds
-    // `samples_per_node` samples; PoissonRecon's adaptive splatting) minus
-    // SPLAT_DEPTH_OFFSET, linearly split between
-    // floor(t_p) and floor(t_p) + 1 so that V changes smoothly with the density. Splatting
-    // sparse samples at the finest depth would make V a field of isolated spikes and the
-    // surface bumpy (measured: 2.5x the Chamfer error of splatting at the density depth).
-    // V_l's coefficients in level l's hats: sum_p omega_{p,l} A_p n_p w_c(p) / h_l^3 with
-    // w_c(p) the cubic B-spline weights of the 4^3 lattice vertices around p (the corners
-    // of p's cell and their one-ring; a partition of unity, so int V = sum_p A_p n_p).
-    // The trilinear weights of p's own cell (8 vertices) made a kernel whose shape depends
-    // on where p falls in its cell; quadratic weights on the 27 vertices around the nearest
-    // one (C1 in p) took the depth-8 sphere, torus and blob (200k samples) from
-    // 0.0021-0.0025% to 0.0015-0.0018% of the diagonal; cubic weights (C2 in p, the first
-    // three moments of the kernel independent of p's place in its cell) from
-    // 0.00121 / 0.00154 / 0.00114% to 0.00098 / 0.00125 / 0.00088% (sphere / torus / blob,
-    // offset 1.25). The quadratic splat left an imprint of the lattice on surfaces
-    // parallel to lattice planes (the torus's top and bottom: a level-set offset
-    // oscillating by +-5e-5 with the surface's height in the cell, h = 8.6e-3). The cubic
-    // weights reach the same vertices as before (p's cell's corners and their one-ring, the
-    // band's active set), so V's divergence still fits the band's ghost layer.
-    let finest = &levels[depth as usize];
-    let ring = octree::ring27();
+/// Weight of level `l` in the splat of a sample whose splat depth is `t` (linear between
+/// `floor(t)` and `floor(t) + 1`; all of it at the finest level `depth`).
+fn splat_weight(t: f64, l: u32, depth: u32) -> f64 {
+    let d0 = t.floor() as u32;
+    let f = t - d0 as f64;
+    if l == d0 {
+        if l == depth { 1.0 } else { 1.0 - f }
+    } else if l == d0 + 1 {
+        f
+    } else {
+        0.0
+    }
+}
+
+/// The lattice vertex `floor(x)` of `u` on a level of `n` cells per axis, and the cubic
+/// B-spline weights `w_c(p)` of the 4 vertices `floor(x) - 1 ..= floor(x) + 2` per axis.
+fn cubic_weights(u: [f64; 3], n: i64) -> ([i64; 3], [[f64; 4]; 3]) {
+    let mut c = [0i64; 3];
+    let mut w = [[0.0; 4]; 3];
+    for a in 0..3 {
+        let x = u[a] * n as f64;
+        let r = (x.floor() as i64).clamp(0, n - 1);
+        c[a] = r;
+        w[a] = bspline::cubic((x - r as f64).clamp(0.0, 1.0));
+    }
+    (c, w)
+}
+
+/// Step 3, normal splatting: the normal field `V = sum_l V_l`, as each level's hat
+/// coefficients (empty where no sample splats).
+///
+/// Each sample is splatted at its density depth `t_p` (PoissonRecon's adaptive splatting)
+/// minus [`SPLAT_DEPTH_OFFSET`], linearly split between `floor(t_p)` and `floor(t_p) + 1` so
+/// that `V` changes smoothly with the density. Splatting sparse samples at the finest depth
+/// would make `V` a field of isolated spikes and the surface bumpy (measured: 2.5x the Chamfer
+/// error of splatting at the density depth). `V_l`'s coefficients in level `l`'s hats:
+/// `sum_p omega_{p,l} A_p n_p w_c(p) / h_l^3` with `w_c(p)` the cubic B-spline weights of the
+/// `4^3` lattice vertices around `p` (the corners of `p`'s cell and their one-ring; a partition
+/// of unity, so `int V = sum_p A_p n_p`).
+///
+/// The trilinear weights of `p`'s own cell (8 vertices) made a kernel whose shape depends on
+/// where `p` falls in its cell; quadratic weights on the 27 vertices around the nearest one
+/// (C1 in `p`) took the depth-8 sphere, torus and blob (200k samples) from 0.0021-0.0025% to
+/// 0.0015-0.0018% of the diagonal; cubic weights (C2 in `p`, the first three moments of the
+/// kernel independent of `p`'s place in its cell) from 0.00121 / 0.00154 / 0.00114% to
+/// 0.00098 / 0.00125 / 0.00088% (sphere / torus / blob, offset 1.25). The quadratic splat
+/// left an imprint of the lattice on surfaces parallel to lattice planes (the torus's top and
+/// bottom: a level-set offset oscillating by +-5e-5 with the surface's height in the cell,
+/// h = 8.6e-3). The cubic weights reach the same vertices as before (`p`'s cell's corners and
+/// their one-ring, the band's active set), so `V`'s divergence still fits the band's ghost
+/// layer.
+fn splat_normal_field(problem: &Problem) -> Vec<Vec<[f64; 3]>> {
+    let depth = problem.depth;
+    let samples = &problem.samples;
     let splat_offsets: Vec<[i32; 3]> = (0..64)
         .map(|k| [(k & 3) - 1, ((k >> 2) & 3) - 1, (k >> 4) - 1])
         .collect();
-    let corners = octree::corners8();
-    let splat_depth: Vec<f64> = density_depth
+    let splat_depth: Vec<f64> = problem
+        .density_depth
         .par_iter()
         .map(|&t| (t - SPLAT_DEPTH_OFFSET).clamp(0.0, depth as f64))
         .collect();
-    let splat_weight = |s: usize, l: u32| -> f64 {
-        let t = splat_depth[s];
-        let d0 = t.floor() as u32;
-        let f = t - d0 as f64;
-        if l == d0 {
-            if l == depth { 1.0 } else { 1.0 - f }
-        } else if l == d0 + 1 {
-            f
-        } else {
-            0.0
-        }
-    };
-    let vcoef: Vec<Vec<[f64; 3]>> = (0..=depth)
+    (0..=depth)
         .map(|l| {
-            let level = &levels[l as usize];
+            let level = &problem.levels[l as usize];
             let h = 1.0 / (1u64 << l) as f64;
             let used: Vec<usize> = (0..samples.len())
-                .filter(|&s| splat_weight(s, l) > 0.0)
+                .filter(|&s| splat_weight(splat_depth[s], l, depth) > 0.0)
                 .collect();
             if used.is_empty() {
                 return Vec::new();
             }
             let mut v = vec![[0.0f64; 3]; level.len()];
             let n = level.n();
-            // w_c(p): cubic B-spline weights of the 4 lattice vertices floor(x) - 1 ..=
-            // floor(x) + 2 per axis.
-            let near = |u: [f64; 3]| -> ([i64; 3], [[f64; 4]; 3]) {
-                let mut c = [0i64; 3];
-                let mut w = [[0.0; 4]; 3];
-                for a in 0..3 {
-                    let x = u[a] * n as f64;
-                    let r = (x.floor() as i64).clamp(0, n - 1);
-                    c[a] = r;
-                    w[a] = bspline::cubic((x - r as f64).clamp(0.0, 1.0));
-                }
-                (c, w)
-            };
             let keys: Vec<u64> = used
                 .iter()
-                .map(|&s| octree::pack(near(samples[s]).0))
+                .map(|&s| octree::pack(cubic_weights(samples[s], n).0))
                 .collect();
             let verts = SortedKeys::from_unsorted(keys.clone());
             let table = level.lookup_from(&verts, Map::Same, &splat_offsets);
             for (i, &s) in used.iter().enumerate() {
-                let f = splat_weight(s, l) * area[s] / (h * h * h);
-                let (_, w) = near(samples[s]);
+                let f = splat_weight(splat_depth[s], l, depth) * problem.area[s] / (h * h * h);
+                let (_, w) = cubic_weights(samples[s], n);
                 let vi = verts.find(keys[i]).expect("indexed");
                 for (o, off) in splat_offsets.iter().enumerate() {
                     let j = table[vi * 64 + o];
@@ -771,86 +1000,90 @@ pub fn reconstruct(
                         // Outside the cube: only at the boundary, where the weight is lost.
                         continue;
                     }
-                    for a in 0..3 {
-                        v[j as usize][a] += f * snormals[s][a] * wk;
+                    for (va, na) in v[j as usize].iter_mut().zip(&problem.normals[s]) {
+                        *va += f * na * wk;
                     }
                 }
             }
             v
         })
-        .collect();
-    // Screening by leaf depth: a sample constrains chi at its leaf and every coarser level,
-    // like PoissonRecon's point data accumulated into every ancestor of the sample's leaf;
-    // finer levels see no constraint from it, and their functions around it are not solved
-    // for (the solve mask below).
-    let screen_area = |l: u32| -> Vec<f64> {
-        area.par_iter()
-            .zip(leaf_depth.par_iter())
-            .map(|(&a, &leaf)| if l <= leaf { a } else { 0.0 })
-            .collect()
-    };
-    // b_d = int grad B_d . V = (part from V_{<=d}) + (part from V_{>d}). The first is the
-    // divergence stencil applied to W_d, V_{<=d} prolonged exactly onto level d (in the
-    // solve below); the second, c_d, is restricted from the finer levels' own parts:
-    // c_{d-1} = R (c_d + f_d), f_d = int grad B_d . V_d, which is supported in S_d (V_d lives
-    // on sample-cell corners), so the restriction is exact.
-    let div_row_key = |level: &Level, key: u64, row: &[u32], w: &[[f64; 3]]| -> f64 {
-        let c = octree::unpack(key);
-        let n = level.n();
-        let h = 1.0 / n as f64;
-        let mut s = 0.0;
-        for (o, off) in ring.iter().enumerate() {
-            let j = row[o];
-            if j == MISSING || w.is_empty() {
-                continue;
-            }
-            let dv = bspline::divergence_entry(c, *off, n);
-            let v = w[j as usize];
-            s += dv[0] * v[0] + dv[1] * v[1] + dv[2] * v[2];
+        .collect()
+}
+
+/// `int grad B_key . W` for the level vertex `key`, with `row` its 27 neighbours' node
+/// indices and `w` the field's coefficients on the level (SPSR eq. 4's right-hand side).
+fn divergence_row(level: &Level, key: u64, row: &[u32], w: &[[f64; 3]]) -> f64 {
+    let c = octree::unpack(key);
+    let n = level.n();
+    let h = 1.0 / n as f64;
+    let mut s = 0.0;
+    for (o, off) in ring().iter().enumerate() {
+        let j = row[o];
+        if j == MISSING || w.is_empty() {
+            continue;
         }
-        s * h * h
-    };
-    let div_row = |level: &Level, table: &[u32], i: usize, w: &[[f64; 3]]| -> f64 {
-        div_row_key(level, level.active.keys[i], &table[i * 27..i * 27 + 27], w)
-    };
-    // The finest level's neighbour table, built once for the right-hand side and the solve.
-    let mut finest_ring = Some(finest.lookup_from(&finest.active, Map::Same, &ring));
-    let mut finer_part: Vec<Vec<f64>> = vec![Vec::new(); depth as usize + 1];
-    finer_part[depth as usize] = vec![0.0; finest.active_len()];
-    for l in (1..=depth as usize).rev() {
-        let level = &levels[l];
+        let dv = bspline::divergence_entry(c, *off, n);
+        let v = w[j as usize];
+        s += dv[0] * v[0] + dv[1] * v[1] + dv[2] * v[2];
+    }
+    s * h * h
+}
+
+/// [`divergence_row`] of active vertex `i`, its neighbours from `table` (27 per vertex).
+fn active_divergence_row(level: &Level, table: &[u32], i: usize, w: &[[f64; 3]]) -> f64 {
+    divergence_row(level, level.active.keys[i], &table[i * 27..i * 27 + 27], w)
+}
+
+/// Step 4, the divergence restricted from finer levels: `b_d = int grad B_d . V` splits into
+/// the part from `V_{<=d}` and the part `c_d` from `V_{>d}`. The first is the divergence
+/// stencil applied to `W_d`, `V_{<=d}` prolonged exactly onto level `d` (in the solve); this
+/// step computes the second, coarse from fine: `c_{d-1} = R (c_d + f_d)` with
+/// `f_d = int grad B_d . V_d`, which is supported in `S_d` (`V_d` lives on sample-cell
+/// corners), so the restriction `R` (the two-scale relation) is exact. Returns `c_d` on each
+/// level's active vertices.
+fn restrict_divergence(
+    problem: &Problem,
+    field: &[Vec<[f64; 3]>],
+    finest_ring: &[u32],
+) -> Vec<Vec<f64>> {
+    let depth = problem.depth as usize;
+    let ring = ring();
+    let mut finer_part: Vec<Vec<f64>> = vec![Vec::new(); depth + 1];
+    finer_part[depth] = vec![0.0; problem.finest().active_len()];
+    for l in (1..=depth).rev() {
+        let level = &problem.levels[l];
         let mut acc = finer_part[l].clone();
         // With the 64-vertex splat V_l reaches the band's edge, so its divergence also has
         // rows on the ghost vertices: those feed the coarser levels through the restriction.
         acc.resize(level.len(), 0.0);
-        if !vcoef[l].is_empty() && !level.ghost.is_empty() {
-            let gt = level.lookup_from(&level.ghost, Map::Same, &ring);
+        if !field[l].is_empty() && !level.ghost.is_empty() {
+            let gt = level.lookup_from(&level.ghost, Map::Same, ring);
             let na = level.active_len();
             acc[na..].par_iter_mut().enumerate().for_each(|(i, a)| {
-                *a += div_row_key(
+                *a += divergence_row(
                     level,
                     level.ghost.keys[i],
                     &gt[i * 27..i * 27 + 27],
-                    &vcoef[l],
+                    &field[l],
                 )
             });
         }
-        if !vcoef[l].is_empty() {
+        if !field[l].is_empty() {
             let own_table;
-            let table: &[u32] = if l == depth as usize {
-                finest_ring.as_ref().expect("built above")
+            let table: &[u32] = if l == depth {
+                finest_ring
             } else {
-                own_table = level.lookup_from(&level.active, Map::Same, &ring);
+                own_table = level.lookup_from(&level.active, Map::Same, ring);
                 &own_table
             };
             let na = level.active_len();
             acc[..na]
                 .par_iter_mut()
                 .enumerate()
-                .for_each(|(i, a)| *a += div_row(level, table, i, &vcoef[l]));
+                .for_each(|(i, a)| *a += active_divergence_row(level, table, i, &field[l]));
         }
-        let coarse = &levels[l - 1];
-        let table = level.lookup_from(&coarse.active, Map::ToFine, &ring);
+        let coarse = &problem.levels[l - 1];
+        let table = level.lookup_from(&coarse.active, Map::ToFine, ring);
         let nf = acc.len();
         finer_part[l - 1] = (0..coarse.active_len())
             .into_par_iter()
@@ -870,134 +1103,141 @@ pub fn reconstruct(
             })
             .collect();
     }
+    finer_part
+}
 
-    // Cascadic solve, coarse to fine.
+/// The coarser levels' solution `y_{d-1}` and normal field `W_{d-1}` prolonged onto every
+/// node of `level` by the two-scale relation: `(z, W)` with `z = P y_{d-1}`,
+/// `W = P W_{d-1}` (exact on the ghost band: every parent of a level vertex is in the
+/// coarser level, octree.rs).
+fn prolong(
+    coarse: &Level,
+    level: &Level,
+    y_coarse: &[f64],
+    w_coarse: &[[f64; 3]],
+) -> (Vec<f64>, Vec<[f64; 3]>) {
+    let corners = octree::corners8();
+    let mut z = vec![0.0; level.len()];
+    let mut wd = vec![[0.0f64; 3]; level.len()];
+    for (part, keys) in [(0usize, &level.active), (level.active_len(), &level.ghost)] {
+        let table = coarse.lookup_from(keys, Map::ToCoarse, &corners);
+        z[part..part + keys.len()]
+            .par_iter_mut()
+            .zip(wd[part..part + keys.len()].par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (zi, wi))| {
+                let c = octree::unpack(keys.keys[i]);
+                let mut s = 0.0;
+                let mut sw = [0.0; 3];
+                for (o, off) in corners.iter().enumerate() {
+                    let w = bspline::prolongation_weight(c[0], off[0])
+                        * bspline::prolongation_weight(c[1], off[1])
+                        * bspline::prolongation_weight(c[2], off[2]);
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let j = table[i * 8 + o];
+                    debug_assert!(j != MISSING, "parent of a band vertex missing");
+                    if j != MISSING {
+                        s += w * y_coarse[j as usize];
+                        for a in 0..3 {
+                            sw[a] += w * w_coarse[j as usize][a];
+                        }
+                    }
+                }
+                *zi = s;
+                *wi = sw;
+            });
+    }
+    (z, wd)
+}
+
+/// The unknowns of level `d` solved for: the band around the cells of the samples whose leaf
+/// reaches the level (`None`: all of them, as on full levels).
+fn solved_unknowns(problem: &Problem, d: u32) -> Option<Vec<bool>> {
+    let level = &problem.levels[d as usize];
+    if level.full {
+        return None;
+    }
+    let keys: Vec<u64> = (0..problem.samples.len())
+        .into_par_iter()
+        .filter(|&s| problem.leaf_depth[s] >= d)
+        .map(|s| cell_key(problem.samples[s], d))
+        .collect();
+    let supported = SortedKeys::from_unsorted(keys);
+    if supported.len() == problem.cells[d as usize].len() {
+        None
+    } else {
+        let band = octree::dilate(&supported, -1, 2, level.n());
+        Some(octree::membership(&level.active, &band))
+    }
+}
+
+/// The screening area of each sample at level `l`: a sample constrains chi at its leaf and
+/// every coarser level, like PoissonRecon's point data accumulated into every ancestor of the
+/// sample's leaf; finer levels see no constraint from it, and their functions around it are
+/// not solved for ([`solved_unknowns`]).
+fn screening_area(problem: &Problem, l: u32) -> Vec<f64> {
+    problem
+        .area
+        .par_iter()
+        .zip(problem.leaf_depth.par_iter())
+        .map(|(&a, &leaf)| if l <= leaf { a } else { 0.0 })
+        .collect()
+}
+
+/// Step 5, the cascadic solve (SPSR section 4.2), coarse to fine: each level solves for its
+/// own coefficients with everything coarser fixed, `A_d x_d = b_d - A_{d,<d} x_{<d}`, with
+/// Jacobi-preconditioned CG (`solver.rs`). Returns `y_d`, the coefficients of
+/// `sum_{d' <= d} chi_{d'}` in level `d`'s hats, for every level, and each level's figures.
+fn solve_cascadic(
+    problem: &Problem,
+    field: &[Vec<[f64; 3]>],
+    finer_part: &[Vec<f64>],
+    finest_ring: Vec<u32>,
+    cfg: &PoissonConfig,
+    progress: &dyn Progress,
+) -> (Vec<Vec<f64>>, Vec<LevelStats>) {
+    let depth = problem.depth;
+    let mut finest_ring = Some(finest_ring);
     progress.begin("poisson: solving", depth as u64 + 1);
     let mut w_prev: Vec<[f64; 3]> = Vec::new();
     let mut ys: Vec<Vec<f64>> = Vec::with_capacity(depth as usize + 1);
     let mut level_stats = Vec::with_capacity(depth as usize + 1);
     for d in 0..=depth {
-        let level = &levels[d as usize];
-        let alpha = cfg.point_weight * cfg.samples_per_node * (1u64 << d) as f64;
+        let level = &problem.levels[d as usize];
         // z = P y_{d-1} and W_d = P W_{d-1} + V_d on all of the level's nodes.
-        let mut z = vec![0.0; level.len()];
-        let mut wd = vec![[0.0f64; 3]; level.len()];
-        if d > 0 {
-            let coarse = &levels[d as usize - 1];
-            let yc = &ys[d as usize - 1];
-            for (part, keys) in [(0usize, &level.active), (level.active_len(), &level.ghost)] {
-                let table = coarse.lookup_from(keys, Map::ToCoarse, &corners);
-                z[part..part + keys.len()]
-                    .par_iter_mut()
-                    .zip(wd[part..part + keys.len()].par_iter_mut())
-                    .enumerate()
-                    .for_each(|(i, (zi, wi))| {
-                        let c = octree::unpack(keys.keys[i]);
-                        let mut s = 0.0;
-                        let mut sw = [0.0; 3];
-                        for (o, off) in corners.iter().enumerate() {
-                            let w = bspline::prolongation_weight(c[0], off[0])
-                                * bspline::prolongation_weight(c[1], off[1])
-                                * bspline::prolongation_weight(c[2], off[2]);
-                            if w == 0.0 {
-                                continue;
-                            }
-                            let j = table[i * 8 + o];
-                            debug_assert!(j != MISSING, "parent of a band vertex missing");
-                            if j != MISSING {
-                                s += w * yc[j as usize];
-                                for a in 0..3 {
-                                    sw[a] += w * w_prev[j as usize][a];
-                                }
-                            }
-                        }
-                        *zi = s;
-                        *wi = sw;
-                    });
-            }
-        }
-        if !vcoef[d as usize].is_empty() {
-            for (wi, vi) in wd.iter_mut().zip(&vcoef[d as usize]) {
+        let (mut z, mut wd) = if d > 0 {
+            prolong(
+                &problem.levels[d as usize - 1],
+                level,
+                &ys[d as usize - 1],
+                &w_prev,
+            )
+        } else {
+            (vec![0.0; level.len()], vec![[0.0f64; 3]; level.len()])
+        };
+        if !field[d as usize].is_empty() {
+            for (wi, vi) in wd.iter_mut().zip(&field[d as usize]) {
                 for a in 0..3 {
                     wi[a] += vi[a];
                 }
             }
         }
-        // Unknowns solved for: the band around the cells of the samples whose leaf reaches
-        // this level (all of them on full levels).
-        let mask: Option<Vec<bool>> = if level.full {
-            None
-        } else {
-            let keys: Vec<u64> = (0..samples.len())
-                .into_par_iter()
-                .filter(|&s| leaf_depth[s] >= d)
-                .map(|s| cell_key(samples[s], d))
-                .collect();
-            let supported = SortedKeys::from_unsorted(keys);
-            if supported.len() == cells[d as usize].len() {
-                None
-            } else {
-                let band = octree::dilate(&supported, -1, 2, level.n());
-                Some(octree::membership(&level.active, &band))
-            }
-        };
+        let mask = solved_unknowns(problem, d);
         let solved = mask
             .as_ref()
             .map_or(level.active_len(), |m| m.iter().filter(|&&b| b).count());
         let mut report = CgReport::default();
         if solved > 0 {
-            let sample_keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, d)).collect();
-            let sys = LevelSystem::new(
-                level,
-                &cells[d as usize],
-                &samples,
-                &sample_keys,
-                &screen_area(d),
-                alpha,
-                &ring,
-                if d == depth { finest_ring.take() } else { None },
-            );
-            // r = b - (h L + alpha S) z over the active vertices (ghost z included), with
-            // b = c_d + div(W_d); zero on the unknowns not solved for, and the operator's
-            // rows there zeroed too, so CG stays in the solved subspace.
-            let mut r = vec![0.0; level.active_len()];
-            sys.apply(&z, &mut r, true);
-            r.par_iter_mut()
-                .zip(finer_part[d as usize].par_iter())
-                .enumerate()
-                .for_each(|(i, (ri, ci))| *ri = ci + div_row(level, &sys.ring, i, &wd) - *ri);
-            let apply_masked = |v: &[f64], out: &mut [f64]| {
-                sys.apply(v, out, false);
-                if let Some(m) = &mask {
-                    out.par_iter_mut().zip(m.par_iter()).for_each(|(o, &keep)| {
-                        if !keep {
-                            *o = 0.0;
-                        }
-                    });
-                }
+            let ring = if d == depth { finest_ring.take() } else { None };
+            let rhs = LevelRhs {
+                z: &z,
+                w: &wd,
+                finer: &finer_part[d as usize],
             };
-            if let Some(m) = &mask {
-                r.par_iter_mut().zip(m.par_iter()).for_each(|(ri, &keep)| {
-                    if !keep {
-                        *ri = 0.0;
-                    }
-                });
-            }
-            let diag = sys.diagonal();
-            let mut x = vec![0.0; level.active_len()];
-            let iters = if level.full {
-                cfg.coarse_cg_iterations
-            } else {
-                cfg.cg_iterations
-            };
-            report = solver::conjugate_gradient(
-                &apply_masked,
-                &diag,
-                &r,
-                &mut x,
-                iters,
-                cfg.cg_tolerance,
-            );
+            let (x, cg) = solve_level(problem, d, &rhs, mask.as_deref(), ring, cfg);
+            report = cg;
             for (zi, xi) in z.iter_mut().zip(&x) {
                 *zi += xi;
             }
@@ -1014,104 +1254,601 @@ pub fn reconstruct(
         progress.advance(1);
     }
     progress.end();
-    let y = &ys[depth as usize];
+    (ys, level_stats)
+}
 
-    // Iso-value: area-weighted mean of chi at the samples.
+/// What a level's solve starts from: the coarser solution prolonged onto the level (`z`), the
+/// normal field `W_d` on it and the divergence restricted from finer levels (`c_d`).
+struct LevelRhs<'a> {
+    z: &'a [f64],
+    w: &'a [[f64; 3]],
+    finer: &'a [f64],
+}
+
+/// One level of the cascade: CG on `(h L + alpha_d S) x = c_d + div(W_d) - (h L + alpha_d S) z`
+/// over the unknowns in `mask`, `alpha_d = point_weight * samples_per_node * 2^d` (the
+/// screening keeps the same strength relative to the gradient term at every level, module
+/// documentation). Returns the correction `x` (active vertices) and the CG figures.
+fn solve_level(
+    problem: &Problem,
+    d: u32,
+    rhs: &LevelRhs,
+    mask: Option<&[bool]>,
+    finest_ring: Option<Vec<u32>>,
+    cfg: &PoissonConfig,
+) -> (Vec<f64>, CgReport) {
+    let level = &problem.levels[d as usize];
+    let alpha = cfg.point_weight * cfg.samples_per_node * (1u64 << d) as f64;
+    let sys = LevelSystem::new(problem, d, &screening_area(problem, d), alpha, finest_ring);
+    let (z, wd, finer_part) = (rhs.z, rhs.w, rhs.finer);
+    // r = b - (h L + alpha S) z over the active vertices (ghost z included), with
+    // b = c_d + div(W_d); zero on the unknowns not solved for, and the operator's
+    // rows there zeroed too, so CG stays in the solved subspace.
+    let mut r = vec![0.0; level.active_len()];
+    sys.apply(z, &mut r, true);
+    r.par_iter_mut()
+        .zip(finer_part.par_iter())
+        .enumerate()
+        .for_each(|(i, (ri, ci))| *ri = ci + active_divergence_row(level, &sys.ring, i, wd) - *ri);
+    let apply_masked = |v: &[f64], out: &mut [f64]| {
+        sys.apply(v, out, false);
+        if let Some(m) = mask {
+            out.par_iter_mut().zip(m.par_iter()).for_each(|(o, &keep)| {
+                if !keep {
+                    *o = 0.0;
+                }
+            });
+        }
+    };
+    if let Some(m) = mask {
+        r.par_iter_mut().zip(m.par_iter()).for_each(|(ri, &keep)| {
+            if !keep {
+                *ri = 0.0;
+            }
+        });
+    }
+    let diag = sys.diagonal();
+    let mut x = vec![0.0; level.active_len()];
+    let iters = if level.full {
+        cfg.coarse_cg_iterations
+    } else {
+        cfg.cg_iterations
+    };
+    let report =
+        solver::conjugate_gradient(&apply_masked, &diag, &r, &mut x, iters, cfg.cg_tolerance);
+    (x, report)
+}
+
+/// Step 6, the iso-value (SPSR section 4.4): the area-weighted mean of chi at the samples,
+/// `y` being the finest level's coefficients.
+fn iso_value(problem: &Problem, y: &[f64]) -> f64 {
+    let depth = problem.depth;
+    let samples = &problem.samples;
+    let area = &problem.area;
     let finest_samples = {
         let keys: Vec<u64> = samples.par_iter().map(|&u| cell_key(u, depth)).collect();
-        LevelSamples::new(finest, &cells[depth as usize], &keys)
+        LevelSamples::new(problem.finest(), &problem.cells[depth as usize], &keys)
     };
-    let (num, den) = (0..samples.len())
-        .into_par_iter()
-        .map(|s| {
-            let w = cell_weights(samples[s], depth);
-            let v: f64 = finest_samples
-                .corners_of(s)
-                .iter()
-                .zip(w.iter())
-                .map(|(&c, w)| y[c as usize] * w)
-                .sum();
-            (area[s] * v, area[s])
-        })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    let iso = num / den;
-    let seconds_solve = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
+    // In a fixed order: the iso-value, and so the mesh, must not depend on the thread count.
+    let [num, den] = fresco_core::ordered_sum::ordered_sum(samples.len(), |s| {
+        let w = cell_weights(samples[s], depth);
+        let v: f64 = finest_samples
+            .corners_of(s)
+            .iter()
+            .zip(w.iter())
+            .map(|(&c, w)| y[c as usize] * w)
+            .sum();
+        [area[s] * v, area[s]]
+    });
+    num / den
+}
 
-    // Values at finest-lattice vertices outside the band: the finest level whose cell around
-    // the point has all 8 corners holds the whole function there (octree.rs).
-    let value_at = |v: [i64; 3]| -> f64 {
-        for d in (0..depth).rev() {
-            let level = &levels[d as usize];
-            let shift = depth - d;
-            let scale = (1i64 << shift) as f64;
-            let nd = level.n();
-            let mut cell = [0i64; 3];
-            let mut t = [0.0; 3];
-            for a in 0..3 {
-                cell[a] = (v[a] >> shift).min(nd - 1);
-                t[a] = v[a] as f64 / scale - cell[a] as f64;
-            }
-            let w = bspline::trilinear(t);
-            let mut s = 0.0;
-            let mut complete = true;
-            for (k, off) in corners.iter().enumerate() {
-                let key = octree::pack([
-                    cell[0] + off[0] as i64,
-                    cell[1] + off[1] as i64,
-                    cell[2] + off[2] as i64,
-                ]);
-                match level.find(key) {
-                    Some(i) => s += w[k] * ys[d as usize][i],
-                    None => {
-                        complete = false;
-                        break;
-                    }
+/// chi at a finest-lattice vertex `v` outside the band: the finest level whose cell around
+/// the point has all 8 corners holds the whole function there (octree.rs).
+fn value_outside_band(problem: &Problem, ys: &[Vec<f64>], v: [i64; 3]) -> f64 {
+    let depth = problem.depth;
+    let corners = octree::corners8();
+    for d in (0..depth).rev() {
+        let level = &problem.levels[d as usize];
+        let shift = depth - d;
+        let scale = (1i64 << shift) as f64;
+        let nd = level.n();
+        let mut cell = [0i64; 3];
+        let mut t = [0.0; 3];
+        for a in 0..3 {
+            cell[a] = (v[a] >> shift).min(nd - 1);
+            t[a] = v[a] as f64 / scale - cell[a] as f64;
+        }
+        let w = bspline::trilinear(t);
+        let mut s = 0.0;
+        let mut complete = true;
+        for (k, off) in corners.iter().enumerate() {
+            let key = octree::pack([
+                cell[0] + off[0] as i64,
+                cell[1] + off[1] as i64,
+                cell[2] + off[2] as i64,
+            ]);
+            match level.find(key) {
+                Some(i) => s += w[k] * ys[d as usize][i],
+                None => {
+                    complete = false;
+                    break;
                 }
             }
-            if complete {
-                return s;
-            }
         }
-        unreachable!("level 0 is full")
-    };
+        if complete {
+            return s;
+        }
+    }
+    unreachable!("level 0 is full")
+}
+
+/// Step 7, extraction: marching cubes on the finest level (`isosurface.rs`) at `iso`, the
+/// vertices mapped back to the input's coordinates with the sampling density at each
+/// (`PoissonOutput::vertex_density`). Returns the mesh, the densities and the cells the
+/// extraction followed outside the band.
+fn extract(
+    problem: &Problem,
+    ys: &[Vec<f64>],
+    iso: f64,
+    cube: &UnitCube,
+    cfg: &PoissonConfig,
+    progress: &dyn Progress,
+) -> (Mesh, Vec<f32>, usize) {
+    let depth = problem.depth;
+    let value_at = |v: [i64; 3]| value_outside_band(problem, ys, v);
     progress.begin("poisson: extracting", 0);
-    let iso_mesh = isosurface::extract(finest, y, iso, &value_at);
+    let iso_mesh = isosurface::extract(problem.finest(), &ys[depth as usize], iso, &value_at);
     progress.end();
     let hd = 1.0 / (1u64 << depth) as f64;
     let positions: Vec<Point3<f64>> = iso_mesh
         .positions
         .iter()
-        .map(|p| origin + Vector3::new(p[0], p[1], p[2]) * (hd * size))
+        .map(|p| cube.to_world(*p, hd))
         .collect();
     let vertex_density: Vec<f32> = iso_mesh
         .positions
         .par_iter()
         .map(|p| {
             let u = [p[0] * hd, p[1] * hd, p[2] * hd];
-            let sigma = density.sigma(u);
+            let sigma = problem.density.sigma(u);
             if sigma > 0.0 {
-                (0.5 * (sigma / cfg.samples_per_node).log2()) as f32
+                density_depth_of(sigma, cfg.samples_per_node) as f32
             } else {
                 0.0
             }
         })
         .collect();
     let mesh = Mesh::from_triangles(positions, iso_mesh.faces);
-    let seconds_extract = t2.elapsed().as_secs_f64();
-    Ok(PoissonOutput {
-        mesh,
-        vertex_density,
-        stats: PoissonStats {
-            samples: samples.len(),
+    (mesh, vertex_density, iso_mesh.flood_cells)
+}
+
+#[cfg(test)]
+mod tests {
+    //! One test per step, on the step's own output: each checks a property the step must
+    //! have whatever the rest of the pipeline does.
+
+    use super::*;
+    use fresco_core::NoProgress;
+    use fresco_core::Rng;
+    use fresco_datasets::point_clouds::{SampleConfig, sample_points};
+    use fresco_datasets::shapes::Shape;
+
+    /// `n` oriented samples of the unit sphere (centred on the origin), run through the
+    /// steps up to the octree levels. The cube is 1.5 times the sphere's diameter, so that no
+    /// splatting kernel reaches past its faces.
+    fn sphere_problem(n: usize, depth: u32) -> (Problem, UnitCube, PoissonConfig) {
+        let cloud = sample_points(
+            &Shape::Sphere.mesh(3),
+            &SampleConfig {
+                count: n,
+                seed: 3,
+                ..SampleConfig::default()
+            },
+        )
+        .unwrap();
+        let cfg = PoissonConfig {
             depth,
-            dropped,
-            levels: level_stats,
-            iso_value: iso,
-            flood_cells: iso_mesh.flood_cells,
-            seconds_octree,
-            seconds_solve,
-            seconds_extract,
-        },
-    })
+            scale: 1.5,
+            ..PoissonConfig::default()
+        };
+        let usable = usable_samples(&cloud.points, &cloud.normals).unwrap();
+        let cube = UnitCube::around(&usable.points, cfg.scale).unwrap();
+        let unit: Vec<[f64; 3]> = usable.points.iter().map(|p| cube.to_unit(p)).collect();
+        let density = estimate_density(&unit, &cfg);
+        (build_levels(unit, usable.normals, density, &cfg), cube, cfg)
+    }
+
+    /// The step's input of `usable_samples`: 12 samples, one with a NaN coordinate, one with
+    /// a zero normal, normals of any length.
+    #[test]
+    fn usable_samples_drop_bad_points_and_normalise_the_normals() {
+        let mut points: Vec<Point3<f64>> =
+            (0..12).map(|i| Point3::new(i as f64, 0.0, 1.0)).collect();
+        let mut normals: Vec<Vector3<f64>> = (0..12)
+            .map(|i| Vector3::new(0.0, 0.0, 1.0 + i as f64))
+            .collect();
+        points[3].x = f64::NAN;
+        normals[7] = Vector3::zeros();
+        let usable = usable_samples(&points, &normals).unwrap();
+        let (p, n) = (&usable.points, &usable.normals);
+        assert_eq!((p.len(), n.len(), usable.dropped), (10, 10, 2));
+        assert!(n.iter().all(|v| (v.norm() - 1.0).abs() < 1e-15));
+        assert!(!p.iter().any(|q| q.x == 3.0 || q.x == 7.0));
+        let e = usable_samples(&points[..11], &normals[..11]).err().unwrap();
+        assert_eq!(
+            e,
+            PoissonError::TooFewPoints {
+                usable: 9,
+                dropped: 2
+            }
+        );
+    }
+
+    /// The cube holds the samples with the `scale` margin on the longest side, maps them
+    /// into [0, 1]^3 and back; coincident samples have no cube (the `fresco mesh` error on 12
+    /// identical points).
+    #[test]
+    fn unit_cube_holds_the_samples_with_the_margin_and_maps_back() {
+        let points = [
+            Point3::new(-1.0, 2.0, 0.5),
+            Point3::new(3.0, 2.5, 0.0),
+            Point3::new(1.0, 4.0, 1.0),
+        ];
+        let cube = UnitCube::around(&points, 1.25).unwrap();
+        assert!((cube.size - 5.0).abs() < 1e-12, "{}", cube.size);
+        let n = 64.0;
+        for p in &points {
+            let u = cube.to_unit(p);
+            assert!(
+                u.iter().all(|&x| (0.1 - 1e-12..=0.9 + 1e-12).contains(&x)),
+                "{u:?}"
+            );
+            let back = cube.to_world([u[0] * n, u[1] * n, u[2] * n], 1.0 / n);
+            assert!((back - p).norm() < 1e-12);
+        }
+        let same = [Point3::new(1.0, 2.0, 3.0); 12];
+        assert_eq!(
+            UnitCube::around(&same, 1.1).err(),
+            Some(PoissonError::NoExtent)
+        );
+    }
+
+    /// Samples spread uniformly over a square of a plane: the estimated density at the
+    /// samples away from the square's edge is the true one within the kernel factor's range
+    /// (0.5 to 0.59 around 0.55, -9% to +8%) and the sampling noise; the leaf and finest
+    /// depths follow `round(log4(sigma / samples_per_node))`.
+    #[test]
+    fn estimate_density_recovers_the_sampling_density_of_a_plane() {
+        let n = 40_000;
+        let mut rng = Rng::new(5);
+        let unit: Vec<[f64; 3]> = (0..n)
+            .map(|_| [rng.range(0.2, 0.8), rng.range(0.2, 0.8), 0.5 + 0.3 / 64.0])
+            .collect();
+        let truth = n as f64 / 0.36;
+        let cfg = PoissonConfig {
+            depth: 8,
+            ..PoissonConfig::default()
+        };
+        let density = estimate_density(&unit, &cfg);
+        let mut ratios: Vec<f64> = unit
+            .iter()
+            .zip(&density.sigma)
+            .filter(|(u, _)| u[0] > 0.3 && u[0] < 0.7 && u[1] > 0.3 && u[1] < 0.7)
+            .map(|(_, &s)| s / truth)
+            .collect();
+        ratios.sort_by(f64::total_cmp);
+        let median = ratios[ratios.len() / 2];
+        let (p5, p95) = (ratios[ratios.len() / 20], ratios[ratios.len() * 19 / 20]);
+        // Measured: 5% 0.913, median 1.031, 95% 1.159.
+        assert!((0.9..1.1).contains(&median), "median ratio {median}");
+        assert!(p5 > 0.85 && p95 < 1.2, "5% {p5}, 95% {p95}");
+        let t = density_depth_of(truth, cfg.samples_per_node);
+        assert_eq!(t.round() as u32, 8, "t = {t}");
+        let at_eight = density.leaf_depth.iter().filter(|&&l| l == 8).count();
+        assert!(
+            at_eight > n * 9 / 10,
+            "{at_eight} of {n} samples reach depth 8"
+        );
+        assert_eq!(density.depth, 8);
+    }
+
+    /// Every depth's sample cells are the parents of the next finer depth's; each sample's
+    /// cell is there at every depth; the samples are sorted by their finest cell; levels up
+    /// to `full_depth` hold the whole lattice, finer ones the band whose active vertices
+    /// include the corners of every sample cell.
+    #[test]
+    fn build_levels_nests_the_sample_cells_and_sorts_the_samples() {
+        let (problem, _, cfg) = sphere_problem(20_000, 7);
+        let depth = problem.depth;
+        assert!(depth > cfg.full_depth, "depth {depth}");
+        let keys: Vec<u64> = problem
+            .samples
+            .iter()
+            .map(|&u| cell_key(u, depth))
+            .collect();
+        assert!(keys.windows(2).all(|w| w[0] <= w[1]));
+        for d in 0..=depth {
+            let cells = &problem.cells[d as usize];
+            for &u in &problem.samples {
+                assert!(cells.find(cell_key(u, d)).is_some());
+            }
+            if d < depth {
+                let parents: Vec<u64> = problem.cells[d as usize + 1]
+                    .keys
+                    .iter()
+                    .map(|&k| {
+                        let c = octree::unpack(k);
+                        octree::pack([c[0] >> 1, c[1] >> 1, c[2] >> 1])
+                    })
+                    .collect();
+                assert_eq!(SortedKeys::from_unsorted(parents).keys, cells.keys);
+            }
+            let level = &problem.levels[d as usize];
+            assert_eq!(level.full, d <= cfg.full_depth);
+            for &k in &cells.keys {
+                let c = octree::unpack(k);
+                for o in octree::corners8() {
+                    let v = [c[0] + o[0] as i64, c[1] + o[1] as i64, c[2] + o[2] as i64];
+                    assert!(level.active.find(octree::pack(v)).is_some());
+                }
+            }
+        }
+    }
+
+    /// The splatting kernel is a partition of unity split between two levels, so the field's
+    /// integral is the area-weighted sum of the normals: `sum_l sum_j v_{l,j} h_l^3 =
+    /// sum_p A_p n_p` (no sample is near enough to the cube's faces to lose weight there).
+    #[test]
+    fn splat_normal_field_integrates_to_the_area_weighted_normals() {
+        let (problem, _, _) = sphere_problem(20_000, 7);
+        let field = splat_normal_field(&problem);
+        let mut integral = [0.0; 3];
+        for (l, v) in field.iter().enumerate() {
+            let h3 = (1.0 / (1u64 << l) as f64).powi(3);
+            for c in v {
+                for a in 0..3 {
+                    integral[a] += c[a] * h3;
+                }
+            }
+        }
+        let mut expected = [0.0; 3];
+        let mut scale = 0.0;
+        for (n, a) in problem.normals.iter().zip(&problem.area) {
+            for k in 0..3 {
+                expected[k] += a * n[k];
+            }
+            scale += a;
+        }
+        for a in 0..3 {
+            assert!(
+                (integral[a] - expected[a]).abs() < 1e-10 * scale,
+                "{integral:?} against {expected:?}"
+            );
+        }
+    }
+
+    /// Hat `i` (1D, spacing `h`) and its derivative at `x`.
+    fn hat(x: f64, i: i64, h: f64) -> (f64, f64) {
+        let s = x / h - i as f64;
+        if s.abs() >= 1.0 {
+            (0.0, 0.0)
+        } else {
+            (1.0 - s.abs(), -s.signum() / h)
+        }
+    }
+
+    /// `V_l(x)`: the level's trilinear interpolation of its coefficients (nodes absent from
+    /// the level hold none).
+    fn field_at(level: &Level, v: &[[f64; 3]], x: [f64; 3]) -> [f64; 3] {
+        let n = level.n();
+        let mut cell = [0i64; 3];
+        let mut t = [0.0; 3];
+        for a in 0..3 {
+            let y = x[a] * n as f64;
+            cell[a] = (y.floor() as i64).clamp(0, n - 1);
+            t[a] = y - cell[a] as f64;
+        }
+        let w = bspline::trilinear(t);
+        let mut out = [0.0; 3];
+        for (k, o) in octree::corners8().iter().enumerate() {
+            let key = octree::pack([
+                cell[0] + o[0] as i64,
+                cell[1] + o[1] as i64,
+                cell[2] + o[2] as i64,
+            ]);
+            if let Some(j) = level.find(key) {
+                for a in 0..3 {
+                    out[a] += w[k] * v[j][a];
+                }
+            }
+        }
+        out
+    }
+
+    /// The restricted part `c_d` of the right-hand side is `int grad B_{d,i} . V_{>d}`,
+    /// computed here independently by 2-point Gauss quadrature on the finest cells (exact:
+    /// the integrand is of degree at most 2 per axis there) at the vertices of a coarse level
+    /// where it is largest.
+    #[test]
+    fn restrict_divergence_equals_the_integral_of_grad_b_dot_v() {
+        let (problem, _, _) = sphere_problem(20_000, 7);
+        let field = splat_normal_field(&problem);
+        let finest = problem.finest();
+        let finest_ring = finest.lookup_from(&finest.active, Map::Same, ring());
+        let c = restrict_divergence(&problem, &field, &finest_ring);
+        assert!(c[problem.depth as usize].iter().all(|&v| v == 0.0));
+        let d = problem.depth - 2;
+        let level = &problem.levels[d as usize];
+        let h = 1.0 / level.n() as f64;
+        let hf = 1.0 / (1u64 << problem.depth) as f64;
+        let mut order: Vec<usize> = (0..level.active_len()).collect();
+        order.sort_by(|&a, &b| c[d as usize][b].abs().total_cmp(&c[d as usize][a].abs()));
+        let largest = c[d as usize][order[0]].abs();
+        assert!(largest > 0.0);
+        let gauss = [0.5 - 0.5 / 3f64.sqrt(), 0.5 + 0.5 / 3f64.sqrt()];
+        for &i in order.iter().take(5) {
+            let v = octree::unpack(level.active.keys[i]);
+            // The finest cells covering the hat's support, inside the cube.
+            let lo: Vec<i64> = v.iter().map(|&x| ((x - 1) * 4).max(0)).collect();
+            let hi: Vec<i64> = v
+                .iter()
+                .map(|&x| ((x + 1) * 4).min(1 << problem.depth))
+                .collect();
+            let mut integral = 0.0;
+            for cz in lo[2]..hi[2] {
+                for cy in lo[1]..hi[1] {
+                    for cx in lo[0]..hi[0] {
+                        for gz in gauss {
+                            for gy in gauss {
+                                for gx in gauss {
+                                    let x = [
+                                        (cx as f64 + gx) * hf,
+                                        (cy as f64 + gy) * hf,
+                                        (cz as f64 + gz) * hf,
+                                    ];
+                                    let b: Vec<(f64, f64)> =
+                                        (0..3).map(|a| hat(x[a], v[a], h)).collect();
+                                    let grad = [
+                                        b[0].1 * b[1].0 * b[2].0,
+                                        b[0].0 * b[1].1 * b[2].0,
+                                        b[0].0 * b[1].0 * b[2].1,
+                                    ];
+                                    let mut vx = [0.0; 3];
+                                    let finer = problem.levels.iter().zip(&field);
+                                    for (level, v) in finer.skip(d as usize + 1) {
+                                        if v.is_empty() {
+                                            continue;
+                                        }
+                                        let f = field_at(level, v, x);
+                                        for (s, fa) in vx.iter_mut().zip(f) {
+                                            *s += fa;
+                                        }
+                                    }
+                                    let weight = hf * hf * hf / 8.0;
+                                    integral += weight
+                                        * (grad[0] * vx[0] + grad[1] * vx[1] + grad[2] * vx[2]);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            let restricted = c[d as usize][i];
+            assert!(
+                (restricted - integral).abs() < 1e-9 * largest,
+                "vertex {v:?}: restricted {restricted}, quadrature {integral}"
+            );
+        }
+    }
+
+    /// The cascade's indicator separates inside from outside: at lattice vertices at half
+    /// and 1.35 times the sphere's radius along the axes, chi lies on opposite
+    /// sides of the iso-value, the same side for every inside probe; and every full level's
+    /// CG reached the tolerance.
+    #[test]
+    fn solve_cascadic_separates_inside_from_outside() {
+        let (problem, cube, cfg) = sphere_problem(20_000, 7);
+        let field = splat_normal_field(&problem);
+        let finest = problem.finest();
+        let finest_ring = finest.lookup_from(&finest.active, Map::Same, ring());
+        let finer = restrict_divergence(&problem, &field, &finest_ring);
+        let (ys, stats) = solve_cascadic(&problem, &field, &finer, finest_ring, &cfg, &NoProgress);
+        assert_eq!(ys.len(), problem.depth as usize + 1);
+        for s in stats.iter().filter(|s| s.depth <= cfg.full_depth) {
+            assert!(
+                s.cg.final_residual <= cfg.cg_tolerance * s.cg.initial_residual
+                    || s.cg.initial_residual == 0.0,
+                "level {}: {:?}",
+                s.depth,
+                s.cg
+            );
+        }
+        let iso = iso_value(&problem, &ys[problem.depth as usize]);
+        let n = finest.n() as f64;
+        let chi = |p: Point3<f64>| {
+            let u = cube.to_unit(&p);
+            let v = [
+                (u[0] * n).round() as i64,
+                (u[1] * n).round() as i64,
+                (u[2] * n).round() as i64,
+            ];
+            match finest.find(octree::pack(v)) {
+                Some(i) => ys[problem.depth as usize][i],
+                None => value_outside_band(&problem, &ys, v),
+            }
+        };
+        let mut inside_sign = 0.0;
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            for sign in [-1.0, 1.0] {
+                let inside = chi(Point3::from(axis * (0.5 * sign))) - iso;
+                let outside = chi(Point3::from(axis * (1.35 * sign))) - iso;
+                assert!(inside * outside < 0.0, "{inside} {outside}");
+                if inside_sign == 0.0 {
+                    inside_sign = inside.signum();
+                }
+                assert_eq!(inside.signum(), inside_sign);
+            }
+        }
+    }
+
+    /// The iso-value is the area-weighted mean of the finest function at the samples:
+    /// exactly the constant for a constant function and, trilinear interpolation reproducing
+    /// linear functions, the weighted mean of the samples' x for `chi = x`.
+    #[test]
+    fn iso_value_is_the_area_weighted_mean_of_chi_at_the_samples() {
+        let (problem, _, _) = sphere_problem(20_000, 7);
+        let finest = problem.finest();
+        let constant = vec![3.25; finest.len()];
+        assert!((iso_value(&problem, &constant) - 3.25).abs() < 1e-12);
+        let h = 1.0 / finest.n() as f64;
+        let x: Vec<f64> = (0..finest.len())
+            .map(|i| octree::unpack(finest.key(i))[0] as f64 * h)
+            .collect();
+        let (mut num, mut den) = (0.0, 0.0);
+        for (u, a) in problem.samples.iter().zip(&problem.area) {
+            num += a * u[0];
+            den += a;
+        }
+        let iso = iso_value(&problem, &x);
+        assert!(
+            (iso - num / den).abs() < 1e-12,
+            "{iso} against {}",
+            num / den
+        );
+    }
+
+    /// With every level's coefficients set to the distance to the sphere's centre, the
+    /// extracted surface at iso-value `r` is the sphere of radius `r`: a closed mesh whose
+    /// vertices lie within a small fraction of the finest spacing of it.
+    #[test]
+    fn extract_follows_the_level_set() {
+        let (problem, cube, cfg) = sphere_problem(20_000, 7);
+        let centre = cube.to_unit(&Point3::origin());
+        let ys: Vec<Vec<f64>> = problem
+            .levels
+            .iter()
+            .map(|level| {
+                let h = 1.0 / level.n() as f64;
+                (0..level.len())
+                    .map(|i| {
+                        let c = octree::unpack(level.key(i));
+                        let d: f64 = (0..3).map(|a| (c[a] as f64 * h - centre[a]).powi(2)).sum();
+                        d.sqrt()
+                    })
+                    .collect()
+            })
+            .collect();
+        let r = 1.0 / cube.size;
+        let (mesh, density, _) = extract(&problem, &ys, r, &cube, &cfg, &NoProgress);
+        assert!(mesh.faces.len() > 1000);
+        assert_eq!(density.len(), mesh.positions.len());
+        let hf = cube.size / problem.finest().n() as f64;
+        for p in &mesh.positions {
+            let err = (p.coords.norm() - 1.0).abs();
+            assert!(err < 0.05 * hf, "vertex {p:?} is {err} off the sphere");
+        }
+        let topology = fresco_core::Topology::build(&mesh).unwrap();
+        assert!(topology.boundary_loops().is_empty());
+    }
 }

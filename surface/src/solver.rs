@@ -18,12 +18,9 @@ pub struct CgReport {
     pub final_residual: f64,
 }
 
+/// In a fixed order, so that the solution has the same bits whatever the thread count.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_iter()
-        .with_min_len(4096)
-        .zip(b.par_iter())
-        .map(|(x, y)| x * y)
-        .sum()
+    fresco_core::ordered_sum::ordered_dot(a, b)
 }
 
 /// Solves `A x = b` from the initial `x`, stopping after `max_iterations` or when the residual

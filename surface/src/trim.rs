@@ -19,26 +19,53 @@
 use std::collections::HashMap;
 
 use fresco_core::Mesh;
+use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::Point3;
 
 use crate::cleanup::face_components;
 
-/// Trimming settings (defaults: PoissonRecon's SurfaceTrimmer `--aRatio 0.001`).
+/// Trimming settings (the area fractions are PoissonRecon's SurfaceTrimmer `--aRatio`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrimConfig {
     /// Density threshold (PoissonRecon's `--trim`; 7 is its usual value at depth 9-10 on
-    /// clouds of a few hundred thousand points). Ignored when `below_median` is set.
+    /// clouds of a few hundred thousand points); finite. Ignored when `below_median` is set.
+    /// Default: `7.0`.
     pub trim: f32,
     /// Threshold relative to the sampling: the median vertex density minus this (density is
-    /// a log4 scale, so 1 cuts where the density falls to a quarter of the typical one).
-    /// An absolute `trim` only suits one point count and depth: the density is
+    /// a log4 scale, so 1 cuts where the density falls to a quarter of the typical one);
+    /// finite. An absolute `trim` only suits one point count and depth: the density is
     /// `log4(samples per unit area / samples per node)`, which grows by 1 for every 4x more
-    /// points.
+    /// points. Default: `None` (the absolute `trim`; `MeshConfig` sets 1).
     pub below_median: Option<f32>,
-    /// Below-threshold components smaller than this fraction of the total area are kept.
+    /// Below-threshold components smaller than this fraction of the total area are kept;
+    /// in [0, 1]. Default: `0.001`.
     pub hole_area: f64,
-    /// Kept components smaller than this fraction of the total area are removed.
+    /// Kept components smaller than this fraction of the total area are removed; in [0, 1].
+    /// Default: `0.001`.
     pub island_area: f64,
+}
+
+impl TrimConfig {
+    /// Validates every field (see each field's range).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        require(self.trim.is_finite(), "trim", self.trim, "finite")?;
+        if let Some(b) = self.below_median {
+            require(b.is_finite(), "below_median", b, "finite")?;
+        }
+        let fraction = |v: f64| (0.0..=1.0).contains(&v);
+        require(
+            fraction(self.hole_area),
+            "hole_area",
+            self.hole_area,
+            "in [0, 1]",
+        )?;
+        require(
+            fraction(self.island_area),
+            "island_area",
+            self.island_area,
+            "in [0, 1]",
+        )
+    }
 }
 
 impl Default for TrimConfig {
@@ -74,10 +101,10 @@ pub struct TrimReport {
 pub enum TrimError {
     #[error("{densities} densities for {vertices} vertices")]
     LengthMismatch { densities: usize, vertices: usize },
-    #[error("trim value {0} is not finite")]
-    BadTrim(f32),
     #[error("no vertex has a finite density to take the median of")]
     NoDensity,
+    #[error(transparent)]
+    Config(#[from] ConfigError),
 }
 
 /// The trimmed mesh with the density of each of its vertices.
@@ -95,6 +122,7 @@ pub fn trim_by_density(
     density: &[f32],
     cfg: &TrimConfig,
 ) -> Result<Trimmed, TrimError> {
+    cfg.check()?;
     if density.len() != mesh.positions.len() {
         return Err(TrimError::LengthMismatch {
             densities: density.len(),
@@ -103,9 +131,6 @@ pub fn trim_by_density(
     }
     let t = match cfg.below_median {
         Some(delta) => {
-            if !delta.is_finite() {
-                return Err(TrimError::BadTrim(delta));
-            }
             let mut finite: Vec<f32> = density.iter().copied().filter(|d| d.is_finite()).collect();
             if finite.is_empty() {
                 return Err(TrimError::NoDensity);
@@ -115,9 +140,6 @@ pub fn trim_by_density(
         }
         None => cfg.trim,
     };
-    if !t.is_finite() {
-        return Err(TrimError::BadTrim(t));
-    }
     let mut out = Mesh {
         positions: mesh.positions.clone(),
         normals: mesh.normals.clone(),

@@ -29,7 +29,7 @@ fn unwelded_soup_is_welded_back() {
             .extend(t.iter().map(|&v| sphere.positions[v as usize]));
         soup.faces.push([base, base + 1, base + 2]);
     }
-    let report = cleanup(&mut soup, &CleanupConfig::default());
+    let report = cleanup(&mut soup, &CleanupConfig::default()).unwrap();
     assert_eq!(soup.positions.len(), sphere.positions.len());
     assert_eq!(soup.faces.len(), sphere.faces.len());
     assert_eq!(
@@ -55,7 +55,7 @@ fn degenerate_duplicate_and_tiny_parts_are_removed() {
     ]);
     mesh.faces.push([base, base + 1, base + 2]);
     mesh.positions.push(Point3::new(9.0, 9.0, 9.0)); // unreferenced
-    let report = cleanup(&mut mesh, &CleanupConfig::default());
+    let report = cleanup(&mut mesh, &CleanupConfig::default()).unwrap();
     assert_eq!(report.degenerate_faces, 1);
     assert_eq!(report.duplicate_faces, 1);
     assert_eq!(report.small_components_removed, 1);
@@ -84,7 +84,8 @@ fn fin_on_an_edge_is_removed() {
             min_component_area: 0.0,
             ..CleanupConfig::default()
         },
-    );
+    )
+    .unwrap();
     assert_eq!(report.non_manifold_edges, 1);
     assert_eq!(report.non_manifold_edge_faces_removed, 1);
     assert_eq!(mesh.faces, clean.faces);
@@ -128,7 +129,7 @@ fn spheres_touching_at_a_vertex_are_split() {
     let before = Topology::build(&mesh).unwrap();
     assert_eq!(before.non_manifold_vertices().len(), 1);
     let faces = mesh.faces.len();
-    let report = cleanup(&mut mesh, &CleanupConfig::default());
+    let report = cleanup(&mut mesh, &CleanupConfig::default()).unwrap();
     assert_eq!(report.non_manifold_vertices_split, 1);
     assert_eq!(mesh.faces.len(), faces, "splitting keeps every face");
     assert_eq!(closed_manifold_genus(&mesh), vec![Some(0), Some(0)]);
@@ -145,7 +146,8 @@ fn keep_largest_component() {
             keep_largest_component: true,
             ..CleanupConfig::default()
         },
-    );
+    )
+    .unwrap();
     assert_eq!(report.small_components_removed, 1);
     assert_eq!(mesh.faces.len(), icosphere(1.0, 3).faces.len());
     assert!(mesh.positions.iter().all(|p| p.x < 2.0));

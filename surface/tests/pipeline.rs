@@ -108,3 +108,42 @@ fn bad_input_is_reported() {
         "{err}"
     );
 }
+
+#[test]
+fn the_mesh_has_the_same_bits_whatever_the_thread_count() {
+    let gt = torus(0.7, 0.3, 96, 48);
+    let cloud = sample_points(
+        &gt,
+        &SampleConfig {
+            count: 20_000,
+            ..SampleConfig::default()
+        },
+    )
+    .unwrap();
+    let mut cfg = config();
+    cfg.poisson.depth = 6;
+    cfg.target_faces = Some(4_000);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                mesh_from_points(&cloud.points, None, &cfg, &NoProgress)
+                    .unwrap()
+                    .0
+            })
+    };
+    let one = run(1);
+    for threads in [2, 3] {
+        let other = run(threads);
+        assert_eq!(one.faces, other.faces, "{threads} threads: other faces");
+        let same_bits = one.positions.iter().zip(&other.positions).all(|(a, b)| {
+            a.coords
+                .iter()
+                .zip(b.coords.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        });
+        assert!(same_bits, "{threads} threads: other vertex positions");
+    }
+}

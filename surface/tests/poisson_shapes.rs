@@ -3,22 +3,10 @@
 
 use fresco_core::knn::PointIndex3;
 use fresco_core::nalgebra::{Point3, Vector3};
-use fresco_core::{Mesh, NoProgress, Topology};
+use fresco_core::{Mesh, NoProgress, Rng, Topology};
 use fresco_datasets::shapes::Shape;
 use fresco_surface::{PoissonConfig, PoissonOutput, reconstruct};
 use rayon::prelude::*;
-
-/// Deterministic uniform numbers in [0, 1) (splitmix64).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// `n` points uniformly on the surface (area-weighted faces), with the face normals.
 fn sample(mesh: &Mesh, n: usize, seed: u64) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {
@@ -30,14 +18,14 @@ fn sample(mesh: &Mesh, n: usize, seed: u64) -> (Vec<Point3<f64>>, Vec<Vector3<f6
         acc += a / total;
         cdf.push(acc);
     }
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut pts = Vec::with_capacity(n);
     let mut nrm = Vec::with_capacity(n);
     for _ in 0..n {
-        let r = rng.next();
+        let r = rng.uniform();
         let f = cdf.partition_point(|&c| c < r).min(areas.len() - 1);
         let [a, b, c] = mesh.triangle(f);
-        let (mut u, mut v) = (rng.next(), rng.next());
+        let (mut u, mut v) = (rng.uniform(), rng.uniform());
         if u + v > 1.0 {
             u = 1.0 - u;
             v = 1.0 - v;

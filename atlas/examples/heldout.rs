@@ -1,0 +1,125 @@
+//! Held-out PSNR of fresco's texture and of the per-vertex colour baseline on a synthetic
+//! scene: `cargo run --release -p fresco-atlas --example heldout -- <shape> [detail] [exposure_jitter]`.
+//! Views 5 and 17 of 24 are held out; the texture is made from the other 22 with the
+//! ground-truth mesh and cameras.
+
+use std::path::Path;
+use std::time::Instant;
+
+use fresco_atlas::{
+    ImageSource, TextureConfig, TextureInputs, TexturedModel, compare_to_photo, comparison_mask,
+    render_textured, texture, vertex_colors,
+};
+use fresco_core::NoProgress;
+use fresco_datasets::{SceneConfig, Shape, write_dataset};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let shape = Shape::from_name(args.get(1).map_or("torus", String::as_str)).expect("shape");
+    let detail: u32 = args
+        .get(2)
+        .map_or(SceneConfig::default().detail, |s| s.parse().unwrap());
+    let jitter: f64 = args.get(3).map_or(0.08, |s| s.parse().unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    let var = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let width = var("WIDTH").map_or(640, |w| w as u32);
+    let cfg = SceneConfig {
+        shape,
+        detail,
+        exposure_jitter: jitter,
+        width,
+        height: width * 3 / 4,
+        ..SceneConfig::default()
+    };
+    let t = Instant::now();
+    write_dataset(&cfg, dir.path(), &NoProgress).unwrap();
+    eprintln!("dataset {:.2} s", t.elapsed().as_secs_f64());
+    let scene = fresco_datasets::build_scene(&cfg).unwrap();
+    let mut mesh = scene.mesh.clone();
+    mesh.colors = None;
+    let rec = fresco_core::colmap::read_model(&dir.path().join("sparse")).unwrap();
+    let images = ImageSource::Folder(dir.path().join("images"));
+    let held = ["view_0005.png", "view_0017.png"];
+    let config = TextureConfig {
+        exclude_images: held.iter().map(|s| s.to_string()).collect(),
+        texels_per_pixel: var("TPP").unwrap_or(1.0),
+        quality_weight: var("QW").unwrap_or(TextureConfig::default().quality_weight),
+        outlier_rejection: var("NOOUT").is_none(),
+        exposure_gains: var("NOGAIN").is_none(),
+        ..TextureConfig::default()
+    };
+    let inputs = TextureInputs {
+        mesh: &mesh,
+        reconstruction: &rec,
+        images: &images,
+        masks: None,
+    };
+    let t = Instant::now();
+    let (model, _masks, summary) = texture(&inputs, &config, &NoProgress).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    let (vmesh, _) = vertex_colors(&inputs, &config, &NoProgress).unwrap();
+    let baseline = TexturedModel {
+        mesh: vmesh,
+        textures: vec![],
+    };
+    println!(
+        "{} detail {detail}: {} faces, {} charts, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s {:?}",
+        shape.name(),
+        summary.faces,
+        summary.charts,
+        summary.atlas_size,
+        summary.texels_per_unit,
+        summary.target_texels_per_unit,
+        summary.coverage,
+        summary.outlier_texels,
+        summary.seconds
+    );
+    for h in held {
+        let im = rec.image_by_name(h).unwrap();
+        let cam = &rec.cameras[&im.camera_id];
+        let photo = image::open(dir.path().join("images").join(h))
+            .unwrap()
+            .into_rgb8();
+        let mask = image::open(dir.path().join("masks").join(format!("{h}.png")))
+            .unwrap()
+            .into_luma8();
+        for (name, m) in [("texture", &model), ("vertex", &baseline)] {
+            let r = render_textured(m, cam, &im.cam_from_world, cfg.supersample).unwrap();
+            let cm = comparison_mask(&r, Some(&mask));
+            let c = compare_to_photo(&r.image, &photo, &cm);
+            let cmp_gains = c.gains;
+            fn c_gain(c: &usize, g: &[f64; 3]) -> f64 {
+                g[*c]
+            }
+            println!(
+                "  {h} {name:8} psnr {:.2} gain-fitted {:.2} ssim {:.4} 1-ncc {:.5} px {}",
+                c.psnr, c.psnr_gain, c.ssim_gain, c.one_minus_ncc, c.pixels
+            );
+            if std::env::var("SAVE").is_ok() && name == "texture" {
+                let diff = image::RgbImage::from_fn(photo.width(), photo.height(), |x, y| {
+                    let (a, b) = (r.image.get_pixel(x, y), photo.get_pixel(x, y));
+                    let k = (y * photo.width() + x) as usize;
+                    if !cm[k] {
+                        return image::Rgb([0, 0, 60]);
+                    }
+                    image::Rgb([0, 1, 2].map(|c| {
+                        ((a[c] as f64 * c_gain(&c, &cmp_gains) - b[c] as f64).abs() * 6.0)
+                            .min(255.0) as u8
+                    }))
+                });
+                diff.save(Path::new("/tmp").join(format!("{}_{h}_diff.png", shape.name())))
+                    .unwrap();
+            }
+            if std::env::var("SAVE").is_ok() {
+                r.image
+                    .save(Path::new("/tmp").join(format!("{}_{h}_{name}.png", shape.name())))
+                    .unwrap();
+            }
+        }
+    }
+    if std::env::var("SAVE").is_ok() {
+        model.textures[0]
+            .save(format!("/tmp/{}_atlas.png", shape.name()))
+            .unwrap();
+    }
+}

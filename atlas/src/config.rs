@@ -1,0 +1,192 @@
+//! Settings of [`crate::texture_mesh`], with their defaults in one place
+//! ([`TextureConfig::default`]) and a [`TextureConfig::check`] that names the bad field.
+
+use serde::Serialize;
+
+use crate::TextureError;
+
+/// Settings of the texture reconstruction.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TextureConfig {
+    /// Largest width and height of an atlas image, texels. Default 8192.
+    pub max_atlas_size: u32,
+    /// Most atlas images written; never exceeded (the density drops instead, with a
+    /// warning). Default 1.
+    pub max_atlases: u32,
+    /// Texels between charts and from the atlas border when the mesh is unwrapped here.
+    /// Default 4.
+    pub gutter: u32,
+    /// Texel density relative to the best photo that sees the surface: texels per photo
+    /// pixel along a side. Default 1.0.
+    pub texels_per_pixel: f64,
+    /// Texels per world unit, overriding the density chosen from the photos. Default none.
+    pub texels_per_unit: Option<f64>,
+    /// Views seeing a face at more than this angle from its normal are dropped for it
+    /// (grazing and back-facing views), degrees. Default 80.
+    pub max_view_angle_deg: f64,
+    /// Relative depth tolerance of the visibility test (a surface point is seen when the
+    /// depth buffer around its pixel is within this fraction of its depth, plus two pixel
+    /// footprints along the slope). Default 0.005.
+    pub depth_tolerance: f64,
+    /// Fit a gain per view and colour channel on the overlaps (exposure and white balance).
+    /// Default true.
+    pub exposure_gains: bool,
+    /// Drop, per texel, a view whose colour disagrees with the others (highlights,
+    /// occluders). Default true.
+    pub outlier_rejection: bool,
+    /// A view is an outlier at a texel when it is further than this many robust standard
+    /// deviations (1.4826 MAD) from the median of the views, and further than
+    /// [`TextureConfig::outlier_min_difference`]. Default 3.
+    pub outlier_sigmas: f64,
+    /// Smallest colour difference (max over channels, in [0, 1]) that can make an outlier.
+    /// Default 0.12 (about 30/255).
+    pub outlier_min_difference: f64,
+    /// Weight of the view-quality preference per texel against Kwatra's seam cost in the
+    /// graph cuts. Default 0.2.
+    pub quality_weight: f64,
+    /// Regularises Kwatra's gradient denominator in flat regions (colour units). Default 0.05.
+    pub seam_epsilon: f64,
+    /// Images (by name) kept out of the texture, e.g. held out for evaluation. Default empty.
+    pub exclude_images: Vec<String>,
+    /// Also write `model.obj` + `model.mtl` beside the GLB. Default false.
+    pub write_obj: bool,
+}
+
+impl Default for TextureConfig {
+    fn default() -> Self {
+        TextureConfig {
+            max_atlas_size: 8192,
+            max_atlases: 1,
+            gutter: 4,
+            texels_per_pixel: 1.0,
+            texels_per_unit: None,
+            max_view_angle_deg: 80.0,
+            depth_tolerance: 0.005,
+            exposure_gains: true,
+            outlier_rejection: true,
+            outlier_sigmas: 3.0,
+            outlier_min_difference: 0.12,
+            quality_weight: 0.2,
+            seam_epsilon: 0.05,
+            exclude_images: Vec::new(),
+            write_obj: false,
+        }
+    }
+}
+
+impl TextureConfig {
+    /// Checks every field; the error names the first one out of range.
+    pub fn check(&self) -> Result<(), TextureError> {
+        let bad =
+            |field: &'static str, message: String| Err(TextureError::Config { field, message });
+        if !(64..=32768).contains(&self.max_atlas_size) {
+            return bad(
+                "max_atlas_size",
+                format!("{} is outside 64..=32768 texels", self.max_atlas_size),
+            );
+        }
+        if self.max_atlases == 0 {
+            return bad("max_atlases", "at least one atlas is needed".into());
+        }
+        if 4 * self.gutter + 8 > self.max_atlas_size {
+            return bad(
+                "gutter",
+                format!(
+                    "{} texels leave no room in a {} atlas",
+                    self.gutter, self.max_atlas_size
+                ),
+            );
+        }
+        if !(self.texels_per_pixel.is_finite()
+            && self.texels_per_pixel > 0.0
+            && self.texels_per_pixel <= 16.0)
+        {
+            return bad(
+                "texels_per_pixel",
+                format!("{} is outside (0, 16]", self.texels_per_pixel),
+            );
+        }
+        if let Some(t) = self.texels_per_unit
+            && !(t.is_finite() && t > 0.0)
+        {
+            return bad("texels_per_unit", format!("{t} is not a positive number"));
+        }
+        if !(self.max_view_angle_deg > 0.0 && self.max_view_angle_deg < 90.0) {
+            return bad(
+                "max_view_angle_deg",
+                format!("{} is outside (0, 90) degrees", self.max_view_angle_deg),
+            );
+        }
+        if !(self.depth_tolerance.is_finite() && (0.0..0.5).contains(&self.depth_tolerance)) {
+            return bad(
+                "depth_tolerance",
+                format!("{} is outside [0, 0.5)", self.depth_tolerance),
+            );
+        }
+        if !(self.outlier_sigmas.is_finite() && self.outlier_sigmas > 0.0) {
+            return bad(
+                "outlier_sigmas",
+                format!("{} is not a positive number", self.outlier_sigmas),
+            );
+        }
+        if !(self.outlier_min_difference.is_finite()
+            && (0.0..=1.0).contains(&self.outlier_min_difference))
+        {
+            return bad(
+                "outlier_min_difference",
+                format!("{} is outside [0, 1]", self.outlier_min_difference),
+            );
+        }
+        if !(self.quality_weight.is_finite() && self.quality_weight >= 0.0) {
+            return bad(
+                "quality_weight",
+                format!("{} is not a non-negative number", self.quality_weight),
+            );
+        }
+        if !(self.seam_epsilon.is_finite() && self.seam_epsilon > 0.0) {
+            return bad(
+                "seam_epsilon",
+                format!("{} is not a positive number", self.seam_epsilon),
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn documented_defaults_hold_and_pass_the_check() {
+        let c = TextureConfig::default();
+        assert_eq!(c.max_atlas_size, 8192);
+        assert_eq!(c.max_atlases, 1);
+        assert_eq!(c.gutter, 4);
+        assert_eq!(c.texels_per_pixel, 1.0);
+        assert_eq!(c.max_view_angle_deg, 80.0);
+        assert!(c.exposure_gains && c.outlier_rejection);
+        assert!(c.exclude_images.is_empty());
+        c.check().unwrap();
+    }
+
+    #[test]
+    fn check_names_the_bad_field() {
+        let c = TextureConfig {
+            max_view_angle_deg: 95.0,
+            ..TextureConfig::default()
+        };
+        let e = c.check().unwrap_err().to_string();
+        assert!(e.contains("max_view_angle_deg"), "{e}");
+        let c = TextureConfig {
+            texels_per_pixel: f64::NAN,
+            ..TextureConfig::default()
+        };
+        assert!(
+            c.check()
+                .unwrap_err()
+                .to_string()
+                .contains("texels_per_pixel")
+        );
+    }
+}

@@ -1,0 +1,562 @@
+//! The driver: a mesh, its cameras and photos to a textured model, as a list of steps.
+//!
+//! 1. [`load_views`]: photos, visibility, per-face view quality (`views.rs`).
+//! 2. [`choose_density`]: texels per world unit from the best photo seeing each face.
+//! 3. [`ensure_uvs`]: the mesh's own UVs, or an unwrap by fresco-param at that density into at
+//!    most `max_atlases` atlases of at most `max_atlas_size` (the density drops, with a
+//!    warning, when it cannot fit).
+//! 4. [`crate::exposure`]: gains per view and channel.
+//! 5. Per chart, in parallel: texels ([`crate::transfer::rasterise_chart`]), each candidate
+//!    view's colours ([`crate::transfer::sample_view`]), greedy graph-cut fusion
+//!    ([`crate::fusion::fuse_chart`]).
+//! 6. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
+//!
+//! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use fresco_core::mesh::Uv;
+use fresco_core::{Mesh, Progress, Reconstruction};
+use image::{GrayImage, RgbImage};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::fill::push_pull;
+use crate::transfer::{NONE, rasterise_chart, sample_view};
+use crate::views::{ImageSource, ViewSet, load_views};
+use crate::{TextureConfig, TextureError};
+
+/// What the texture is made from.
+pub struct TextureInputs<'a> {
+    /// The surface, facing its cameras (counter-clockwise seen from outside). With corner
+    /// UVs they are used as they are; without, the mesh is unwrapped here.
+    pub mesh: &'a Mesh,
+    /// Cameras and poses of the photos (3D points are not needed).
+    pub reconstruction: &'a Reconstruction,
+    pub images: &'a ImageSource,
+    /// Optional folder of masks (`<name>.png`, non-zero on the object).
+    pub masks: Option<&'a Path>,
+}
+
+/// A textured mesh in memory: UVs (and atlas index per face when several) with its atlases.
+#[derive(Clone, Debug)]
+pub struct TexturedModel {
+    pub mesh: Mesh,
+    pub textures: Vec<RgbImage>,
+}
+
+/// Gains fitted for one view.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewGain {
+    pub name: String,
+    /// Multiplies the photo's red, green and blue.
+    pub gain: [f32; 3],
+}
+
+/// Seconds spent in each step.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timings {
+    pub views: f64,
+    pub unwrap: f64,
+    pub gains: f64,
+    pub fusion: f64,
+    pub fill: f64,
+    pub write: f64,
+}
+
+/// What [`texture_mesh`] did.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TextureSummary {
+    pub faces: usize,
+    pub views_used: usize,
+    pub views_skipped: usize,
+    /// Whether the mesh had no UVs and was unwrapped here.
+    pub unwrapped: bool,
+    pub charts: usize,
+    pub charts_per_100k_faces: f64,
+    pub atlases: usize,
+    pub atlas_size: u32,
+    /// Density asked for by the photos, and the density of the atlas.
+    pub target_texels_per_unit: f64,
+    pub texels_per_unit: f64,
+    /// Fraction of the charts' texels coloured from a photo; the rest was filled.
+    pub coverage: f64,
+    /// (texel, view) pairs dropped as photometric outliers.
+    pub outlier_texels: usize,
+    pub gains: Vec<ViewGain>,
+    pub seconds: Timings,
+    pub warnings: Vec<String>,
+    /// Files written.
+    pub outputs: Vec<PathBuf>,
+}
+
+/// The texture reconstruction in memory (steps in the module documentation); also returns
+/// each atlas' coverage mask (255 photo colour, 128 filled inside a chart, 0 gutter).
+pub fn texture(
+    inputs: &TextureInputs,
+    config: &TextureConfig,
+    progress: &dyn Progress,
+) -> Result<(TexturedModel, Vec<GrayImage>, TextureSummary), TextureError> {
+    config.check()?;
+    let mesh_in = inputs.mesh;
+    mesh_in
+        .validate()
+        .map_err(|e| TextureError::Mesh(e.to_string()))?;
+    if mesh_in.faces.is_empty() {
+        return Err(TextureError::EmptyMesh);
+    }
+    let mut summary = TextureSummary {
+        faces: mesh_in.faces.len(),
+        ..TextureSummary::default()
+    };
+    let t = Instant::now();
+    let set = load_views(
+        mesh_in,
+        inputs.reconstruction,
+        inputs.images,
+        inputs.masks,
+        config,
+        progress,
+    )?;
+    summary.views_used = set.views.len();
+    let requested = inputs
+        .reconstruction
+        .images
+        .values()
+        .filter(|im| !config.exclude_images.contains(&im.name))
+        .count();
+    summary.views_skipped = requested - set.views.len();
+    summary.warnings.extend(set.warnings.iter().cloned());
+    summary.seconds.views = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let target = config
+        .texels_per_unit
+        .unwrap_or_else(|| choose_density(mesh_in, &set) * config.texels_per_pixel);
+    summary.target_texels_per_unit = target;
+    let mut mesh = mesh_in.clone();
+    // The texture replaces any vertex colours (viewers would multiply the two).
+    mesh.colors = None;
+    let (size, atlases, tpu) = ensure_uvs(&mut mesh, target, config, progress, &mut summary)?;
+    summary.atlas_size = size;
+    summary.atlases = atlases;
+    summary.texels_per_unit = tpu;
+    summary.seconds.unwrap = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let gains = if config.exposure_gains {
+        crate::exposure::fit_gains(&mesh, &set, config.depth_tolerance)
+    } else {
+        vec![[1.0; 3]; set.views.len()]
+    };
+    summary.gains = set
+        .views
+        .iter()
+        .zip(&gains)
+        .map(|(v, g)| ViewGain {
+            name: v.name.clone(),
+            gain: *g,
+        })
+        .collect();
+    summary.seconds.gains = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let charts = chart_faces(&mesh);
+    summary.charts = charts.len();
+    summary.charts_per_100k_faces = charts.len() as f64 * 1e5 / mesh.faces.len() as f64;
+    let normals = mesh.face_normals();
+    let uvs = mesh.corner_uvs.as_ref().expect("ensure_uvs set them");
+    progress.begin("fusing charts", mesh.faces.len() as u64);
+    let fused: Vec<ChartOutput> = charts
+        .par_iter()
+        .map(|(atlas, faces)| {
+            let out = fuse_one_chart(
+                &mesh, &normals, uvs, *atlas, faces, size, &set, &gains, config,
+            );
+            progress.advance(faces.len() as u64);
+            out
+        })
+        .collect();
+    progress.end();
+    summary.outlier_texels = fused.iter().map(|c| c.outliers).sum();
+    summary.seconds.fusion = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    progress.begin("filling holes and gutters", atlases as u64);
+    let s = size as usize;
+    let mut textures = Vec::with_capacity(atlases);
+    let mut masks = Vec::with_capacity(atlases);
+    let (mut interior, mut covered) = (0usize, 0usize);
+    for a in 0..atlases as u32 {
+        let mut colour = vec![[0f32; 3]; s * s];
+        let mut weight = vec![0f32; s * s];
+        let mut mask = vec![0u8; s * s];
+        // Interior texels first, then the extrapolated borders where nothing else is.
+        for pass_interior in [true, false] {
+            for c in fused.iter().filter(|c| c.atlas == a) {
+                for y in 0..c.height {
+                    for x in 0..c.width {
+                        let i = y * c.width + x;
+                        let state = c.state[i];
+                        let is_interior = state == STATE_PHOTO || state == STATE_HOLE;
+                        if state == STATE_NONE || is_interior != pass_interior {
+                            continue;
+                        }
+                        let k = (c.y0 + y) * s + c.x0 + x;
+                        if pass_interior {
+                            mask[k] = if state == STATE_PHOTO { 255 } else { 128 };
+                        } else if mask[k] != 0 || weight[k] > 0.0 {
+                            continue;
+                        }
+                        if state == STATE_PHOTO || state == STATE_BORDER_PHOTO {
+                            colour[k] = c.colour[i];
+                            weight[k] = 1.0;
+                        }
+                    }
+                }
+            }
+        }
+        interior += mask.iter().filter(|&&m| m != 0).count();
+        covered += mask.iter().filter(|&&m| m == 255).count();
+        push_pull(&mut colour, &weight, s, s);
+        let rgb: Vec<u8> = colour
+            .iter()
+            .flat_map(|c| c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8))
+            .collect();
+        textures.push(RgbImage::from_raw(size, size, rgb).expect("sized buffer"));
+        masks.push(GrayImage::from_raw(size, size, mask).expect("sized buffer"));
+        progress.advance(1);
+    }
+    progress.end();
+    summary.coverage = if interior > 0 {
+        covered as f64 / interior as f64
+    } else {
+        0.0
+    };
+    summary.seconds.fill = t.elapsed().as_secs_f64();
+    Ok((TexturedModel { mesh, textures }, masks, summary))
+}
+
+/// Texel states of a fused chart.
+const STATE_NONE: u8 = 0;
+const STATE_PHOTO: u8 = 1;
+const STATE_HOLE: u8 = 2;
+const STATE_BORDER_PHOTO: u8 = 3;
+const STATE_BORDER_EMPTY: u8 = 4;
+
+struct ChartOutput {
+    atlas: u32,
+    x0: usize,
+    y0: usize,
+    width: usize,
+    height: usize,
+    colour: Vec<[f32; 3]>,
+    state: Vec<u8>,
+    outliers: usize,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fuse_one_chart(
+    mesh: &Mesh,
+    normals: &[fresco_core::nalgebra::Vector3<f64>],
+    uvs: &[[Uv; 3]],
+    atlas: u32,
+    faces: &[u32],
+    size: u32,
+    set: &ViewSet,
+    gains: &[[f32; 3]],
+    config: &TextureConfig,
+) -> ChartOutput {
+    let grid = rasterise_chart(uvs, faces.to_vec(), size as usize);
+    let candidates: Vec<usize> = (0..set.views.len())
+        .filter(|&v| faces.iter().any(|&f| set.quality(f as usize, v) > 0.0))
+        .collect();
+    let texels: Vec<_> = candidates
+        .iter()
+        .map(|&v| sample_view(mesh, normals, &grid, set, v, config.depth_tolerance))
+        .filter(|t| t.valid.iter().any(|&ok| ok))
+        .collect();
+    let fused = crate::fusion::fuse_chart(&grid, texels, set, gains, config);
+    let state = (0..grid.texel_face.len())
+        .map(|i| {
+            let has = fused.label[i] != u16::MAX;
+            match (grid.texel_face[i] != NONE, grid.interior[i], has) {
+                (false, _, _) => STATE_NONE,
+                (true, true, true) => STATE_PHOTO,
+                (true, true, false) => STATE_HOLE,
+                (true, false, true) => STATE_BORDER_PHOTO,
+                (true, false, false) => STATE_BORDER_EMPTY,
+            }
+        })
+        .collect();
+    ChartOutput {
+        atlas,
+        x0: grid.x0,
+        y0: grid.y0,
+        width: grid.width,
+        height: grid.height,
+        colour: fused.colour,
+        state,
+        outliers: fused.outlier_texels,
+    }
+}
+
+/// Texels per world unit that give each face the resolution of the best photo that sees it
+/// (pixels per unit along a side, `sqrt(projected area / area)`): the area-weighted median
+/// over the seen faces.
+fn choose_density(mesh: &Mesh, set: &ViewSet) -> f64 {
+    let nv = set.views.len();
+    let mut samples: Vec<(f64, f64)> = (0..mesh.faces.len())
+        .filter_map(|f| {
+            let area = mesh.face_area(f);
+            let best = (0..nv).max_by(|&a, &b| {
+                set.quality(f, a)
+                    .total_cmp(&set.quality(f, b))
+                    .then(b.cmp(&a))
+            })?;
+            if set.quality(f, best) <= 0.0 || area <= 0.0 {
+                return None;
+            }
+            let px = set.projected_area(f, best) as f64;
+            Some(((px / area).sqrt(), area))
+        })
+        .collect();
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = samples.iter().map(|s| s.1).sum();
+    let mut acc = 0.0;
+    for (d, a) in &samples {
+        acc += a;
+        if acc >= 0.5 * total {
+            return *d;
+        }
+    }
+    samples.last().map_or(1.0, |s| s.0)
+}
+
+/// Gives `mesh` UVs (step 3 of the module documentation); returns the atlas size, the atlas
+/// count and the density reached.
+fn ensure_uvs(
+    mesh: &mut Mesh,
+    target: f64,
+    config: &TextureConfig,
+    progress: &dyn Progress,
+    summary: &mut TextureSummary,
+) -> Result<(u32, usize, f64), TextureError> {
+    let total_area = mesh.surface_area();
+    let max = config.max_atlas_size;
+    if let Some(uvs) = &mesh.corner_uvs {
+        // The mesh's own UVs: choose the image size that gives the target density.
+        let count = mesh
+            .face_textures
+            .as_ref()
+            .map_or(1, |t| t.iter().copied().max().unwrap_or(0) as usize + 1);
+        if count > config.max_atlases as usize {
+            return Err(TextureError::Config {
+                field: "max_atlases",
+                message: format!(
+                    "the mesh's UVs use {count} texture images but at most {} were asked for",
+                    config.max_atlases
+                ),
+            });
+        }
+        let uv_area: f64 = uvs
+            .iter()
+            .map(|t| {
+                0.5 * ((t[1][0] - t[0][0]) as f64 * (t[2][1] - t[0][1]) as f64
+                    - (t[2][0] - t[0][0]) as f64 * (t[1][1] - t[0][1]) as f64)
+                    .abs()
+            })
+            .sum();
+        let ideal = target * (total_area / uv_area.max(1e-12)).sqrt();
+        let mut size = (ideal.ceil() as u32).div_ceil(4) * 4;
+        if size > max {
+            let w = format!(
+                "the mesh's UVs need a {size}-texel atlas for the photos' resolution; using {max} (density reduced to {:.1}%)",
+                100.0 * max as f64 / size as f64
+            );
+            tracing::warn!("{w}");
+            summary.warnings.push(w);
+            size = max;
+        }
+        let size = size.max(64);
+        let tpu = size as f64 * (uv_area / total_area.max(1e-300)).sqrt();
+        return Ok((size, count, tpu));
+    }
+    summary.unwrapped = true;
+    let note = "the mesh has no texture coordinates: unwrapping it (fresco-param)".to_string();
+    tracing::info!("{note}");
+    summary.warnings.push(note);
+    // Utilisation of about 0.6 leaves room for gutters and packing.
+    let needed = (total_area * target * target / 0.6).sqrt();
+    let mut unwrap_cfg = fresco_param::UnwrapConfig {
+        gutter: config.gutter,
+        ..fresco_param::UnwrapConfig::default()
+    };
+    let size = ((needed.ceil() as u32).div_ceil(64) * 64).max(256);
+    let report = if size <= max {
+        unwrap_cfg.atlas_size = size;
+        unwrap_cfg.texels_per_unit = None;
+        unwrap(mesh, &unwrap_cfg, progress)?
+    } else {
+        unwrap_cfg.atlas_size = max;
+        let mut report = None;
+        if config.max_atlases > 1 {
+            unwrap_cfg.texels_per_unit = Some(target);
+            let r = unwrap(mesh, &unwrap_cfg, progress)?;
+            if r.atlases <= config.max_atlases {
+                report = Some(r);
+            }
+        }
+        match report {
+            Some(r) => r,
+            None => {
+                unwrap_cfg.texels_per_unit = None;
+                let r = unwrap(mesh, &unwrap_cfg, progress)?;
+                let w = format!(
+                    "the photos' resolution needs {:.0} texels per unit, more than {} atlas(es) of {max} hold: density reduced to {:.0}",
+                    target, config.max_atlases, r.texels_per_unit
+                );
+                tracing::warn!("{w}");
+                summary.warnings.push(w);
+                r
+            }
+        }
+    };
+    summary.warnings.extend(report.warnings.iter().cloned());
+    Ok((
+        unwrap_cfg.atlas_size,
+        report.atlases.max(1) as usize,
+        report.texels_per_unit,
+    ))
+}
+
+fn unwrap(
+    mesh: &mut Mesh,
+    cfg: &fresco_param::UnwrapConfig,
+    progress: &dyn Progress,
+) -> Result<fresco_param::UnwrapReport, TextureError> {
+    fresco_param::unwrap(mesh, cfg, progress).map_err(|e| TextureError::Unwrap(e.to_string()))
+}
+
+/// Faces grouped by (atlas, chart): `face_groups` when the mesh has them, else the islands of
+/// faces joined by edges with the same UVs on both sides. Deterministic order.
+fn chart_faces(mesh: &Mesh) -> Vec<(u32, Vec<u32>)> {
+    let nf = mesh.faces.len();
+    let atlas_of = |f: usize| mesh.face_textures.as_ref().map_or(0, |t| t[f]);
+    let labels: Vec<u32> = match &mesh.face_groups {
+        Some(g) => g.clone(),
+        None => uv_islands(mesh),
+    };
+    let mut groups: std::collections::BTreeMap<(u32, u32), Vec<u32>> = Default::default();
+    for (f, &label) in labels.iter().enumerate().take(nf) {
+        groups
+            .entry((atlas_of(f), label))
+            .or_default()
+            .push(f as u32);
+    }
+    groups
+        .into_iter()
+        .map(|((a, _), faces)| (a, faces))
+        .collect()
+}
+
+/// Union-find over faces sharing an edge whose two endpoints carry the same UVs in both.
+fn uv_islands(mesh: &Mesh) -> Vec<u32> {
+    let uvs = mesh.corner_uvs.as_ref().expect("called with UVs");
+    let nf = mesh.faces.len();
+    let mut parent: Vec<u32> = (0..nf as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    let mut edges: std::collections::HashMap<(u32, u32), (u32, [Uv; 2])> = Default::default();
+    for (f, tri) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let (ua, ub) = (uvs[f][k], uvs[f][(k + 1) % 3]);
+            let (key, uv) = if a < b {
+                ((a, b), [ua, ub])
+            } else {
+                ((b, a), [ub, ua])
+            };
+            match edges.get(&key) {
+                Some(&(g, other)) if other == uv => {
+                    let (x, y) = (find(&mut parent, f as u32), find(&mut parent, g));
+                    if x != y {
+                        parent[x.max(y) as usize] = x.min(y);
+                    }
+                }
+                Some(_) => {}
+                None => {
+                    edges.insert(key, (f as u32, uv));
+                }
+            }
+        }
+    }
+    (0..nf as u32).map(|f| find(&mut parent, f)).collect()
+}
+
+/// Runs [`texture`] and writes into `out_dir`: `texture/atlas_<k>.png`,
+/// `texture/coverage_<k>.png`, `model.glb`, `charts.ply` when the mesh was unwrapped here,
+/// and `model.obj` + `model.mtl` when asked. Every file is written atomically.
+pub fn texture_mesh(
+    inputs: &TextureInputs,
+    config: &TextureConfig,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<TextureSummary, TextureError> {
+    let (model, masks, mut summary) = texture(inputs, config, progress)?;
+    let t = Instant::now();
+    let tex_dir = out_dir.join("texture");
+    std::fs::create_dir_all(&tex_dir).map_err(|e| fresco_core::FormatError::io(&tex_dir, e))?;
+    let mut names = Vec::new();
+    for (k, (img, mask)) in model.textures.iter().zip(&masks).enumerate() {
+        let path = tex_dir.join(format!("atlas_{k}.png"));
+        write_png(&path, &image::DynamicImage::ImageRgb8(img.clone()))?;
+        summary.outputs.push(path);
+        names.push(format!("texture/atlas_{k}.png"));
+        let path = tex_dir.join(format!("coverage_{k}.png"));
+        write_png(&path, &image::DynamicImage::ImageLuma8(mask.clone()))?;
+        summary.outputs.push(path);
+    }
+    let glb = out_dir.join("model.glb");
+    fresco_core::gltf::write_glb(&glb, &model.mesh, &model.textures)?;
+    summary.outputs.push(glb);
+    if summary.unwrapped {
+        let path = out_dir.join("charts.ply");
+        fresco_core::ply::write_mesh(
+            &path,
+            &model.mesh,
+            fresco_core::ply::PlyFormat::BinaryLittleEndian,
+        )?;
+        summary.outputs.push(path);
+    }
+    if config.write_obj {
+        let path = out_dir.join("model.obj");
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        fresco_core::obj::write_obj(&path, &model.mesh, &refs)?;
+        summary.outputs.push(path.clone());
+        summary.outputs.push(path.with_extension("mtl"));
+    }
+    summary.seconds.write = t.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Encodes `img` as PNG and writes it atomically.
+pub(crate) fn write_png(path: &Path, img: &image::DynamicImage) -> Result<(), TextureError> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| TextureError::Output {
+        path: path.to_path_buf(),
+        message: format!("cannot encode PNG: {e}"),
+    })?;
+    fresco_core::atomic_file::write_bytes_atomically(path, &bytes)?;
+    Ok(())
+}

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Issue 16 benchmarks (texture sprites, paper 001) on the 2-core machine: the paper's
+# figure-1 cases on the synthetic blob (datasets/sprites/*.json): memory beside the paper's
+# table 2, lookups per second in surface (baking) order and in random order beside its
+# 13-38M lookups/s on a GeForce 6800 GT (table 1: 800x600 x FPS), the depth-9 octree texture
+# (bytes per stored texel), the baked GLB's PSNR against the direct rendering, and the
+# pictures in bench/pictures/sprites_*.png. There is no reference tool: the anchors are the
+# paper's own tables.
+#
+# Usage: bench/sprites.sh          (QUICK=1: fewer lookups per pass)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+echo "start $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"
+cargo build --release -p fresco-sprites --example figure1
+ARGS=()
+[[ -n ${QUICK:-} ]] && ARGS+=(--quick)
+nice -n 0 target/release/examples/figure1 "${ARGS[@]}"
+echo "end $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"

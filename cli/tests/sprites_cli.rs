@@ -1,0 +1,146 @@
+//! `fresco sprites` (issue 16) from the command line: the example scenes render and bake as
+//! they are; bad scenes (unknown field, missing pattern file, degenerate frame, zero size)
+//! are refused with an error naming the sprite or pattern, a non-zero exit and no output
+//! written; an octree texture is written in pst's format.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fresco(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fresco"))
+        .args(args)
+        .output()
+        .expect("fresco runs")
+}
+
+fn examples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/sprites")
+}
+
+/// A change made to a good scene, and what the error must say.
+type Case = (
+    &'static str,
+    Box<dyn Fn(&mut serde_json::Value)>,
+    &'static str,
+);
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn bad_scenes_fail_cleanly_naming_the_sprite() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = examples().join("blob.ply");
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(examples().join("gears.json")).unwrap())
+            .unwrap();
+    let pattern = |k: usize| s(&examples().join(good["patterns"][k].as_str().unwrap())).to_string();
+    let cases: [Case; 5] = [
+        (
+            "unknown field",
+            Box::new(|v| v["sprites"][3]["colour"] = 1.into()),
+            "sprite 3: unknown field `colour`",
+        ),
+        (
+            "missing pattern",
+            Box::new(|v| v["patterns"][1] = "nowhere/missing.png".into()),
+            "pattern 1 (",
+        ),
+        (
+            "zero normal",
+            Box::new(|v| v["sprites"][7]["normal"] = serde_json::json!([0, 0, 0])),
+            "sprite 7: the normal has zero length",
+        ),
+        (
+            "zero size",
+            Box::new(|v| v["sprites"][2]["size"] = serde_json::json!([0.0, 0.3])),
+            "sprite 2: size",
+        ),
+        (
+            "overflowing number",
+            Box::new(|_| {}),
+            "number out of range",
+        ),
+    ];
+    for (what, edit, expect) in cases {
+        let mut v = good.clone();
+        for k in 0..2 {
+            v["patterns"][k] = pattern(k).into();
+        }
+        edit(&mut v);
+        let mut text = serde_json::to_string(&v).unwrap();
+        if what == "overflowing number" {
+            text = text.replacen("\"center\":[", "\"center\":[1e999,", 1);
+        }
+        let scene = dir.path().join(format!("{}.json", what.replace(' ', "_")));
+        std::fs::write(&scene, text).unwrap();
+        let out_png = dir.path().join("out.png");
+        let out = fresco(&["sprites", "render", s(&mesh), s(&scene), "-o", s(&out_png)]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{what}: {err}");
+        assert!(err.contains(expect), "{what}: {err}");
+        assert!(err.contains(s(&scene)), "{what}: names the file: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out_png.exists(), "{what}: nothing written");
+    }
+}
+
+#[test]
+fn example_scene_renders_and_octree_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = examples().join("blob.ply");
+    let png = dir.path().join("gears.png");
+    let out = fresco(&[
+        "sprites",
+        "render",
+        s(&mesh),
+        s(&examples().join("gears.json")),
+        "-o",
+        s(&png),
+        "--size",
+        "160x120",
+        "--time",
+        "0.5",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (160, 120));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["memory"]["sprites"], 50);
+    // Overwriting an input is refused.
+    let out = fresco(&[
+        "sprites",
+        "render",
+        s(&mesh),
+        s(&examples().join("gears.json")),
+        "-o",
+        s(&mesh),
+    ]);
+    assert!(!out.status.success());
+    let foct = dir.path().join("marble.foct");
+    let out = fresco(&[
+        "sprites",
+        "octree",
+        s(&mesh),
+        "--depth",
+        "6",
+        "--marble",
+        "-o",
+        s(&foct),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tex = fresco_pst::octree_texture::OctreeTexture::load(&foct).unwrap();
+    assert_eq!((tex.depth, tex.channels), (6, 3));
+    assert!(tex.texels > 1000);
+}

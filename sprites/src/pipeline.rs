@@ -1,0 +1,215 @@
+//! Whole operations, one per `fresco sprites` verb: render a sprite scene on a mesh, bake a
+//! scene into a model's atlas (GLB out), build an octree texture. Models are read with core's
+//! PLY reader or pst's GLB/OBJ reader (one reader per format in fresco).
+
+use std::path::{Path, PathBuf};
+
+use fresco_core::Mesh;
+use fresco_pst::octree_texture::OctreeTexture;
+use image::RgbImage;
+
+use crate::bake::{BakeConfig, BakeReport, bake};
+use crate::error::{Result, SpriteError};
+use crate::octree::{OctreeConfig, OctreeMemory};
+use crate::render::{RenderConfig, Rest, orbit_camera, render};
+use crate::scene::Scene;
+use crate::tree::MemoryReport;
+
+/// A model: its mesh and the images its faces sample (`None`: a material without one).
+pub struct Model {
+    pub mesh: Mesh,
+    pub textures: Vec<Option<RgbImage>>,
+}
+
+/// Reads `.ply`, `.obj` or `.glb`.
+pub fn load_model(path: &Path) -> Result<Model> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "ply" => Ok(Model {
+            mesh: fresco_core::ply::read_mesh(path)?,
+            textures: Vec::new(),
+        }),
+        "glb" | "obj" => {
+            let m = fresco_pst::transfer::TexturedModel::load(path)
+                .map_err(|e| SpriteError::Input(format!("{e}")))?;
+            let textures = m
+                .textures
+                .iter()
+                .map(|t| {
+                    t.as_ref()
+                        .map(|i| image::DynamicImage::ImageRgba8(i.clone()).to_rgb8())
+                })
+                .collect();
+            Ok(Model {
+                mesh: m.mesh,
+                textures,
+            })
+        }
+        _ => Err(SpriteError::Input(format!(
+            "{}: unknown model format (expected .ply, .obj or .glb)",
+            path.display()
+        ))),
+    }
+}
+
+/// Where a render looks from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    pub width: u32,
+    pub height: u32,
+    pub azimuth_deg: f64,
+    pub elevation_deg: f64,
+    pub fov_deg: f64,
+}
+
+impl Default for View {
+    fn default() -> Self {
+        View {
+            width: 640,
+            height: 480,
+            azimuth_deg: 30.0,
+            elevation_deg: 20.0,
+            fov_deg: 40.0,
+        }
+    }
+}
+
+/// Renders the sprite scene on `mesh` (texture attached to `rest`, or to the mesh itself)
+/// at time `t`; returns the image and the tree's memory figures.
+pub fn render_scene(
+    mesh: &Mesh,
+    rest: Option<&Mesh>,
+    scene: &Scene,
+    view: &View,
+    config: &RenderConfig,
+    t: f64,
+) -> Result<(RgbImage, MemoryReport)> {
+    let rest = Rest::of(mesh, rest)?;
+    let bb = Mesh::from_triangles(rest.positions.clone(), Vec::new())
+        .bounding_box()
+        .ok_or_else(|| SpriteError::Input("the mesh has no vertices".into()))?;
+    let tree = scene.build(
+        [bb.min.x, bb.min.y, bb.min.z],
+        [bb.max.x, bb.max.y, bb.max.z],
+        t,
+    )?;
+    let vb = mesh.bounding_box().expect("has vertices");
+    let (camera, pose) = orbit_camera(
+        [vb.min.x, vb.min.y, vb.min.z],
+        [vb.max.x, vb.max.y, vb.max.z],
+        view.width,
+        view.height,
+        view.azimuth_deg,
+        view.elevation_deg,
+        view.fov_deg,
+    )?;
+    let img = render(mesh, &rest, &camera, &pose, config, &|q| tree.lookup(q))?;
+    Ok((img, tree.memory()))
+}
+
+/// What `fresco sprites bake` did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BakeSummary {
+    pub output: PathBuf,
+    pub bake: BakeReport,
+    pub memory: MemoryReport,
+    pub atlas_sizes: Vec<[u32; 2]>,
+}
+
+/// Bakes the scene at time `t` into the atlas of the model at `model` (UVs required) and
+/// writes the decorated model as GLB to `output` (atomically), optionally the first atlas
+/// as PNG.
+pub fn bake_scene(
+    model: &Path,
+    scene: &Scene,
+    output: &Path,
+    atlas_png: Option<&Path>,
+    config: &BakeConfig,
+    t: f64,
+) -> Result<BakeSummary> {
+    config.check()?;
+    let m = load_model(model)?;
+    if m.mesh.corner_uvs.is_none() {
+        return Err(SpriteError::Input(format!(
+            "{}: the model has no texture coordinates; run `fresco unwrap` first",
+            model.display()
+        )));
+    }
+    let rest = Rest::of(&m.mesh, None)?;
+    let bb = m
+        .mesh
+        .bounding_box()
+        .ok_or_else(|| SpriteError::Input(format!("{}: no vertices", model.display())))?;
+    let tree = scene.build(
+        [bb.min.x, bb.min.y, bb.min.z],
+        [bb.max.x, bb.max.y, bb.max.z],
+        t,
+    )?;
+    let (images, report) = bake(&m.mesh, &rest, &m.textures, config, &|q| tree.lookup(q))?;
+    fresco_core::gltf::write_glb(output, &m.mesh, &images)?;
+    if let Some(png) = atlas_png {
+        let mut bytes = Vec::new();
+        images[0]
+            .write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| SpriteError::Input(format!("{}: {e}", png.display())))?;
+        fresco_core::atomic_file::write_bytes_atomically(png, &bytes)?;
+    }
+    Ok(BakeSummary {
+        output: output.to_path_buf(),
+        bake: report,
+        memory: tree.memory(),
+        atlas_sizes: images.iter().map(|i| [i.width(), i.height()]).collect(),
+    })
+}
+
+/// Where an octree texture's colours come from.
+pub enum OctreeSource<'a> {
+    /// Perlin marble, `scale` veins per world unit, noise seed.
+    Marble { scale: f64, seed: u64 },
+    /// The colour of the closest surface point of a textured model.
+    Model(&'a Path),
+}
+
+/// Builds the octree texture of `mesh` (with node values for tree mip-mapping when `mip`)
+/// and writes it (`.foct`, pst's format) to `output`.
+pub fn octree_texture(
+    mesh: &Mesh,
+    source: &OctreeSource,
+    config: &OctreeConfig,
+    mip: bool,
+    output: &Path,
+) -> Result<(OctreeTexture, OctreeMemory)> {
+    let tex = match source {
+        OctreeSource::Marble { scale, seed } => {
+            let noise = fresco_pst::noise::Perlin::new(*seed);
+            crate::octree::build(mesh, config, &|p| crate::octree::marble(&noise, p, *scale))?
+        }
+        OctreeSource::Model(path) => {
+            let m = fresco_pst::transfer::TexturedModel::load(path)
+                .map_err(|e| SpriteError::Input(format!("{e}")))?;
+            let closest = fresco_pst::closest::ClosestPoint::new(&m.mesh);
+            crate::octree::build(mesh, config, &|p| {
+                let q = fresco_core::nalgebra::Point3::new(p[0], p[1], p[2]);
+                match closest.query(&q) {
+                    Some(hit) => m
+                        .color_at(hit.face as usize, hit.bary)
+                        .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8),
+                    None => [0, 0, 0],
+                }
+            })?
+        }
+    };
+    let mut tex = tex;
+    if mip {
+        crate::octree::compute_node_values(&mut tex);
+    }
+    tex.save(output)?;
+    let mem = crate::octree::memory(&tex);
+    Ok((tex, mem))
+}

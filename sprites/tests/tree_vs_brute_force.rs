@@ -1,0 +1,268 @@
+//! The tree lookup equals a brute-force evaluation over all sprites (issue 16's first "must
+//! show"), for every blend mode and N = 2, 4, 8, and stays so through deletions and updates;
+//! insertion failures are errors that leave the tree unchanged.
+
+use fresco_core::Rng;
+use fresco_sprites::{
+    BlendConfig, BlendMode, Footprint, Pattern, Placement, Query, Sprite, SpriteError, SpriteTree,
+    TreeConfig,
+};
+use image::{Rgba, RgbaImage};
+
+/// A radial-alpha disc with a coloured ring (a tabulated distance in alpha, as blobby and
+/// Voronoi patterns are), a hard-edged star and a half-transparent stripe pattern.
+fn patterns() -> Vec<Pattern> {
+    let disc = RgbaImage::from_fn(32, 32, |x, y| {
+        let (dx, dy) = (x as f32 - 15.5, y as f32 - 15.5);
+        let r = (dx * dx + dy * dy).sqrt() / 16.0;
+        let a = ((1.0 - r).max(0.0) * 255.0) as u8;
+        let k = (200.0 * r).min(200.0);
+        Rgba([(k + 40.0) as u8, 90, (255.0 - k) as u8, a])
+    });
+    let star = RgbaImage::from_fn(24, 24, |x, y| {
+        let (dx, dy) = (x as f32 - 11.5, y as f32 - 11.5);
+        let ang = dy.atan2(dx);
+        let r = (dx * dx + dy * dy).sqrt() / 12.0;
+        let inside = r < 0.45 + 0.4 * (5.0 * ang).cos().abs();
+        Rgba([250, 220, 40, if inside { 255 } else { 0 }])
+    });
+    let stripes = RgbaImage::from_fn(16, 8, |x, _| {
+        Rgba([if x % 4 < 2 { 255 } else { 30 }, 60, 120, 160])
+    });
+    [disc, star, stripes].iter().map(Pattern::new).collect()
+}
+
+fn unit(rng: &mut Rng) -> [f64; 3] {
+    loop {
+        let v = [
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        ];
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if l > 0.1 && l <= 1.0 {
+            return v.map(|c| c / l);
+        }
+    }
+}
+
+/// A sprite on the unit sphere at a random point, random size and rotation.
+fn random_sprite(rng: &mut Rng, mode: Option<BlendMode>, order: i64) -> Sprite {
+    let n = unit(rng);
+    let size = rng.range(0.08, 0.35);
+    let blend = mode.unwrap_or(BlendMode::ALL[rng.below(4)]);
+    Sprite::placed(
+        &Placement {
+            center: n,
+            normal: n,
+            up: [0.0, 0.0, 1.0],
+            size: [size, size * rng.range(0.7, 1.3)],
+            depth: size * 0.5,
+            rotation_deg: rng.range(0.0, 360.0),
+        },
+        rng.below(3) as u32,
+        order,
+        blend,
+    )
+    .unwrap()
+}
+
+fn random_query(rng: &mut Rng) -> Query {
+    let n = unit(rng);
+    let r = 1.0 + rng.range(-0.02, 0.02);
+    let tilt = unit(rng);
+    let normal = [0, 1, 2].map(|a| (n[a] + 0.3 * tilt[a]) as f32);
+    let l = (normal.iter().map(|v| v * v).sum::<f32>()).sqrt();
+    let k = 10f64.powf(rng.range(-4.0, -1.0)) as f32;
+    Query {
+        p: n.map(|v| (v * r) as f32),
+        normal: (rng.below(4) != 0).then(|| normal.map(|v| v / l)),
+        footprint: (rng.below(2) == 0).then(|| Footprint {
+            dpdx: unit(rng).map(|v| v as f32 * k),
+            dpdy: unit(rng).map(|v| v as f32 * k * 0.5),
+        }),
+    }
+}
+
+fn tree(n: u32, o_max: usize) -> SpriteTree {
+    let (min, size) = SpriteTree::cube_around([-1.0; 3], [1.0; 3], 0.05);
+    SpriteTree::new(
+        min,
+        size,
+        patterns(),
+        TreeConfig {
+            n,
+            o_max,
+            max_depth: 32,
+        }
+        .clamp_depth(),
+        &BlendConfig::default(),
+    )
+    .unwrap()
+}
+
+trait ClampDepth {
+    fn clamp_depth(self) -> Self;
+}
+impl ClampDepth for TreeConfig {
+    fn clamp_depth(mut self) -> Self {
+        self.max_depth = self.max_depth.min(32 / self.n.trailing_zeros());
+        self
+    }
+}
+
+/// Asserts bit equality on `count` random queries; returns how many were covered.
+fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
+    let order = tree.user_order();
+    let mut covered = 0;
+    for _ in 0..count {
+        let q = random_query(rng);
+        let a = tree.lookup(&q);
+        let b = tree.brute_force(&order, &q);
+        assert_eq!(
+            a.map(f32::to_bits),
+            b.map(f32::to_bits),
+            "{q:?}: {a:?} vs {b:?}"
+        );
+        covered += (a[3] > 0.0) as usize;
+    }
+    covered
+}
+
+#[test]
+fn lookups_equal_brute_force_for_every_blend_mode_and_n() {
+    for n in [2, 4, 8] {
+        for mode in [None]
+            .into_iter()
+            .chain(BlendMode::ALL.into_iter().map(Some))
+        {
+            let mut rng = Rng::new(n as u64 * 31 + mode.map_or(9, |m| m as u64));
+            let mut t = tree(n, 16);
+            let mut added = 0;
+            for k in 0..400 {
+                let order = rng.below(50) as i64 - k % 3;
+                let s = random_sprite(&mut rng, mode, order);
+                if t.add(s).is_ok() {
+                    added += 1;
+                }
+            }
+            assert!(added >= 380, "N={n} {mode:?}: {added} sprites inserted");
+            let covered = assert_equal(&t, &mut rng, 20_000);
+            assert!(
+                covered > 10_000,
+                "N={n} {mode:?}: only {covered} points covered"
+            );
+            assert!(t.is_minimal());
+            let m = t.memory();
+            assert!(m.depth >= 2, "the tree splits: {m:?}");
+        }
+    }
+}
+
+#[test]
+fn deletions_and_updates_keep_lookups_exact_and_the_tree_minimal() {
+    for n in [2, 4, 8] {
+        let mut rng = Rng::new(100 + n as u64);
+        let mut t = tree(n, 8);
+        let mut ids = Vec::new();
+        for k in 0..200 {
+            if let Ok(id) = t.add(random_sprite(&mut rng, None, k)) {
+                ids.push(id);
+            }
+        }
+        let before = t.memory();
+        // Delete every third sprite, move or rescale every other one.
+        for (k, &id) in ids.iter().enumerate() {
+            if k % 3 == 0 {
+                t.remove(id).unwrap();
+            } else if k % 2 == 0 {
+                let s = random_sprite(&mut rng, None, k as i64);
+                let cells = t.pool().cells().to_vec();
+                if t.update(id, s).is_err() {
+                    assert_eq!(
+                        t.pool().cells(),
+                        &cells[..],
+                        "a failed update changes nothing"
+                    );
+                }
+            }
+        }
+        assert!(t.is_minimal(), "N={n}");
+        assert_equal(&t, &mut rng, 5_000);
+        // Re-adding into freed ids and removing everything gives back the empty root.
+        for id in t.ids().collect::<Vec<_>>() {
+            t.remove(id).unwrap();
+        }
+        let m = t.memory();
+        assert_eq!(
+            (m.nodes_used, m.leaf_vectors_used, m.sprites),
+            (1, 0, 0),
+            "{before:?}"
+        );
+        assert!(
+            t.pool().cells()[..t.pool().cells_per_node()]
+                .iter()
+                .all(|&c| c == 0)
+        );
+    }
+}
+
+#[test]
+fn insertion_failures_are_errors_that_leave_the_tree_unchanged() {
+    let mut t = tree(4, 2);
+    let mut rng = Rng::new(5);
+    let s = random_sprite(&mut rng, Some(BlendMode::Over), 0);
+    t.add(s.clone()).unwrap();
+    t.add(s.clone()).unwrap();
+    let cells = t.pool().cells().to_vec();
+    let err = t.add(s.clone()).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            SpriteError::OmaxTooSmall {
+                index: 2,
+                o_max: 2,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("O_max too small"));
+    assert_eq!(t.pool().cells(), &cells[..]);
+    assert_eq!(t.len(), 2);
+    // Two sprites side by side that a third overlaps both of, but not together inside
+    // any cell deep enough: with max_depth 1 the split is refused.
+    let t = TreeConfig {
+        n: 2,
+        o_max: 1,
+        max_depth: 1,
+    };
+    t.check().unwrap();
+    let mut t = SpriteTree::new([-2.0; 3], 4.0, patterns(), t, &BlendConfig::default()).unwrap();
+    let place = |x: f64| {
+        Sprite::placed(
+            &Placement {
+                center: [x, 0.5, 0.5],
+                normal: [0.0, 0.0, 1.0],
+                up: [0.0, 1.0, 0.0],
+                size: [0.2, 0.2],
+                depth: 0.1,
+                rotation_deg: 0.0,
+            },
+            0,
+            0,
+            BlendMode::Over,
+        )
+        .unwrap()
+    };
+    t.add(place(0.5)).unwrap();
+    let err = t.add(place(0.9)).unwrap_err();
+    assert!(err.to_string().contains("max depth reached"), "{err}");
+    assert_eq!(t.len(), 1);
+    assert!(t.is_minimal());
+    // A NaN frame is refused naming the sprite.
+    let mut bad = place(0.0);
+    bad.l[0] = f64::NAN;
+    let err = t.add(bad).unwrap_err();
+    assert!(err.to_string().starts_with("sprite 1:"), "{err}");
+}

@@ -1,0 +1,119 @@
+//! Tuning aid: runs PatchMatch on one view of a dense workspace (made by `dense_synth`) with
+//! configuration overrides and compares the depth map with the synthetic ground truth.
+//!
+//! `cargo run -p fresco-surface --example dense_tune -- <dataset> <dense dir> <view> [key=value ...]`
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use fresco_core::colmap;
+use fresco_core::photo::load_photo;
+use fresco_core::ply::read_mesh;
+use fresco_core::raster::{self, RasterConfig, SampleMap};
+use fresco_surface::dense::patch_match::{
+    Intrinsics, PatchMatchConfig, Problem, Source, patch_match,
+};
+use fresco_surface::dense::view_selection::{ViewSelectionConfig, select_views};
+use fresco_surface::dense::{DenseLayout, DenseView};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let dataset = PathBuf::from(&args[1]);
+    let dense = PathBuf::from(&args[2]);
+    let r: usize = args[3].parse()?;
+    let mut cfg = PatchMatchConfig::default();
+    let mut vs = ViewSelectionConfig::default();
+    for kv in &args[4..] {
+        let (k, v) = kv.split_once('=').ok_or("key=value")?;
+        match k {
+            "window_radius" => cfg.window_radius = v.parse()?,
+            "window_step" => cfg.window_step = v.parse()?,
+            "sigma_color" => cfg.sigma_color = v.parse()?,
+            "sigma_spatial" => cfg.sigma_spatial = v.parse()?,
+            "iterations" => cfg.iterations = v.parse()?,
+            "top_k" => cfg.top_k = v.parse()?,
+            "max_cost" => cfg.max_cost = v.parse()?,
+            "max_sources" => vs.max_sources = v.parse()?,
+            _ => return Err(format!("unknown key {k}").into()),
+        }
+    }
+    let mesh = read_mesh(dataset.join("mesh.ply"))?;
+    let rec = colmap::read_model(&dense.join("sparse"))?;
+    let layout = DenseLayout::new(&dense);
+    let views: Vec<DenseView> = rec
+        .images
+        .values()
+        .map(|im| DenseView {
+            image_id: im.id,
+            name: im.name.clone(),
+            camera: rec.cameras[&im.camera_id].clone(),
+            cam_from_world: im.cam_from_world,
+        })
+        .collect();
+    let choices = select_views(&views, &rec, &vs);
+    let choice = &choices[r];
+    let grey = |v: usize| load_photo(&layout.image(&views[v].name)).map(|p| p.grey);
+    let reference = grey(r)?;
+    let sources: Vec<_> = choice
+        .sources
+        .iter()
+        .map(|&s| grey(s))
+        .collect::<Result<_, _>>()?;
+    let view = &views[r];
+    let range = choice.depth_range.unwrap();
+    let problem = Problem {
+        image: &reference,
+        k: Intrinsics::of(&view.camera),
+        sources: choice
+            .sources
+            .iter()
+            .zip(&sources)
+            .map(|(&s, img)| Source {
+                image: img,
+                k: Intrinsics::of(&views[s].camera),
+                src_from_ref: views[s].cam_from_world.0 * view.cam_from_world.0.inverse(),
+            })
+            .collect(),
+        depth_range: (range.0 as f32, range.1 as f32),
+        mask: None,
+    };
+    let t = Instant::now();
+    let map = patch_match(&problem, &cfg, 1);
+    let secs = t.elapsed().as_secs_f64();
+    let sm = SampleMap::new(&view.camera, 1)?;
+    let vis = raster::visibility(&mesh, &sm, &view.cam_from_world, &RasterConfig::default())?;
+    let (mut gt, mut good, mut bad, mut missing, mut extra) = (0, 0, 0, 0, 0);
+    let mut errs = Vec::new();
+    for i in 0..map.depth.len() {
+        let (g, e) = (vis.depth[i], map.depth[i]);
+        if g.is_finite() {
+            gt += 1;
+            if e <= 0.0 {
+                missing += 1;
+            } else {
+                let rel = ((e - g) / g).abs();
+                errs.push(rel);
+                if rel < 0.002 {
+                    good += 1;
+                } else {
+                    bad += 1;
+                }
+            }
+        } else if e > 0.0 {
+            extra += 1;
+        }
+    }
+    errs.sort_by(f32::total_cmp);
+    let q = |f: f64| errs[((errs.len() - 1) as f64 * f) as usize];
+    println!(
+        "{:.2}s good {:.3} bad {:.3} missing {:.3} extra {:.3}; rel error median {:.5} p90 {:.5}",
+        secs,
+        good as f64 / gt as f64,
+        bad as f64 / gt as f64,
+        missing as f64 / gt as f64,
+        extra as f64 / gt as f64,
+        q(0.5),
+        q(0.9)
+    );
+    Ok(())
+}

@@ -1,0 +1,459 @@
+//! Fusion of the depth maps into one oriented, coloured point cloud, with COLMAP's
+//! `stereo_fusion` semantics and defaults (Schönberger, Zheng, Pollefeys and Frahm,
+//! "Pixelwise View Selection for Unstructured Multi-View Stereo", ECCV 2016, section 4.4):
+//! a pixel of a reference view becomes a point when at least `min_views` views agree on it
+//! (the reference counts as one). A neighbour view agrees when the reference's 3D point,
+//! projected into it, lands on a pixel whose own depth is within `max_depth_error` (relative)
+//! of the point's depth there, whose 3D point reprojects within `max_reproj_px` of the
+//! reference pixel, and whose normal is within `max_normal_deg` of the reference's. The
+//! point is the mean of the agreeing views' 3D points, with their mean normal (in the world
+//! frame, facing the cameras that saw it) and mean colour; its visibility list names them.
+//!
+//! The fusion streams: views are taken in order, each with its neighbours (its source views),
+//! so only those depth maps and images are in memory at a time (kept while the next view
+//! still needs them). Neighbour pixels that joined a point are marked used (one bit per pixel)
+//! and do not start a point of their own when their view's turn comes. Points are appended
+//! to a temporary record file and written out as `fused.ply` (COLMAP's layout: float x y z,
+//! float nx ny nz, uchar red green blue) and `fused.ply.vis` (COLMAP's: u64 point count, then
+//! per point a u32 count and u32 view indices) at the end, both atomically.
+//! Rows of a view are processed in parallel and their points concatenated in row order, and
+//! the used-pixel marks are applied after the view: the output does not depend on the thread
+//! count.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use fresco_core::atomic_file::{temporary_path, write_atomically};
+use fresco_core::nalgebra::{Matrix3, Point3, Vector3};
+use fresco_core::ply::{PlyFormat, PlyLayout, PlyVertex, PlyWriter};
+use fresco_core::{FormatError, Progress};
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::patch_match::{DepthMap, Intrinsics};
+use super::{DenseError, DenseView};
+
+/// Fusion settings (COLMAP's `StereoFusionOptions` defaults where it has them).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FusionConfig {
+    /// Fewest agreeing views (the reference included) for a point. Default 3.
+    pub min_views: usize,
+    /// Largest reprojection error, pixels. Default 2 (COLMAP's `max_reproj_error`).
+    pub max_reproj_px: f64,
+    /// Largest relative depth difference. Default 0.01 (COLMAP's `max_depth_error`).
+    pub max_depth_error: f64,
+    /// Largest angle between normals, degrees. Default 10 (COLMAP's `max_normal_error`).
+    pub max_normal_deg: f64,
+}
+
+impl Default for FusionConfig {
+    fn default() -> Self {
+        FusionConfig {
+            min_views: 3,
+            max_reproj_px: 2.0,
+            max_depth_error: 0.01,
+            max_normal_deg: 10.0,
+        }
+    }
+}
+
+impl FusionConfig {
+    /// The first field with an unusable value, by name.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        if self.min_views == 0 {
+            return Err(("min_views", "at least 1 view is needed".into()));
+        }
+        for (name, v) in [
+            ("max_reproj_px", self.max_reproj_px),
+            ("max_depth_error", self.max_depth_error),
+            ("max_normal_deg", self.max_normal_deg),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((name, format!("{v} is not a positive number")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What one view brings to the fusion.
+pub struct FusionView {
+    pub map: DepthMap,
+    /// The undistorted photo, same size as the map.
+    pub rgb: RgbImage,
+}
+
+/// What [`fuse`] wrote.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FusionSummary {
+    pub points: u64,
+    pub ply: PathBuf,
+    pub vis: PathBuf,
+    /// Mean number of views per point.
+    pub mean_views: f64,
+}
+
+/// One fused point before it is written.
+struct Fused {
+    position: Point3<f64>,
+    normal: Vector3<f64>,
+    color: [u8; 3],
+    views: Vec<u32>,
+    /// (view, pixel) marks to apply after the view.
+    used: Vec<(u32, u32)>,
+}
+
+/// A view's geometry as the fusion needs it.
+struct Geometry {
+    k: Intrinsics,
+    /// cam_from_world rotation and translation.
+    r: Matrix3<f64>,
+    t: Vector3<f64>,
+}
+
+impl Geometry {
+    fn of(view: &DenseView) -> Geometry {
+        Geometry {
+            k: Intrinsics::of(&view.camera),
+            r: view
+                .cam_from_world
+                .0
+                .rotation
+                .to_rotation_matrix()
+                .into_inner(),
+            t: view.cam_from_world.0.translation,
+        }
+    }
+
+    /// World point of array pixel (`x`, `y`) at `depth`.
+    fn world(&self, x: f64, y: f64, depth: f64) -> Vector3<f64> {
+        let c = Vector3::new(
+            (x - self.k.cx) / self.k.fx * depth,
+            (y - self.k.cy) / self.k.fy * depth,
+            depth,
+        );
+        self.r.transpose() * (c - self.t)
+    }
+
+    /// Array position and depth of world point `p`.
+    fn project(&self, p: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+        let c = self.r * p + self.t;
+        (c.z > 0.0).then(|| {
+            (
+                self.k.fx * c.x / c.z + self.k.cx,
+                self.k.fy * c.y / c.z + self.k.cy,
+                c.z,
+            )
+        })
+    }
+}
+
+/// Fuses the depth maps of `views` into `ply` and `<ply>.vis`. `neighbours[v]` lists the
+/// views checked against view `v`; `load(v)` reads view `v`'s maps and image (or `None` when
+/// the view has no depth map: it then contributes nothing).
+pub fn fuse(
+    views: &[DenseView],
+    neighbours: &[Vec<usize>],
+    load: &(dyn Fn(usize) -> Result<Option<FusionView>, DenseError> + Sync),
+    cfg: &FusionConfig,
+    ply: &Path,
+    progress: &dyn Progress,
+) -> Result<FusionSummary, DenseError> {
+    let geometry: Vec<Geometry> = views.iter().map(Geometry::of).collect();
+    let mut used: Vec<Option<Vec<u64>>> = vec![None; views.len()];
+    let mut cache: BTreeMap<usize, Option<FusionView>> = BTreeMap::new();
+    let records_path = temporary_path(ply);
+    let mut records = Records::create(&records_path)?;
+    let cos_normal = cfg.max_normal_deg.to_radians().cos();
+    progress.begin("fusion", views.len() as u64);
+    for r in 0..views.len() {
+        // Keep what this view needs, load what is missing.
+        let needed: Vec<usize> = std::iter::once(r)
+            .chain(neighbours[r].iter().copied().filter(|&j| j != r))
+            .collect();
+        cache.retain(|k, _| needed.contains(k));
+        for &v in &needed {
+            if let std::collections::btree_map::Entry::Vacant(e) = cache.entry(v) {
+                e.insert(load(v)?);
+            }
+        }
+        let Some(reference) = cache.get(&r).and_then(|v| v.as_ref()) else {
+            progress.advance(1);
+            continue;
+        };
+        let others: Vec<(usize, &FusionView)> = needed[1..]
+            .iter()
+            .filter_map(|&j| cache.get(&j).and_then(|v| v.as_ref()).map(|v| (j, v)))
+            .collect();
+        let ref_used = used[r].take();
+        let points = fuse_view(
+            r,
+            reference,
+            &others,
+            &geometry,
+            ref_used.as_deref(),
+            cfg,
+            cos_normal,
+        );
+        for p in &points {
+            for &(j, pixel) in &p.used {
+                let j = j as usize;
+                if j <= r {
+                    continue;
+                }
+                let n = views[j].camera.width as usize * views[j].camera.height as usize;
+                let bits = used[j].get_or_insert_with(|| vec![0u64; n.div_ceil(64)]);
+                bits[pixel as usize / 64] |= 1 << (pixel % 64);
+            }
+            records.push(p)?;
+        }
+        progress.advance(1);
+    }
+    progress.end();
+    drop(cache);
+    let summary = records.finish(ply)?;
+    Ok(summary)
+}
+
+/// The points that start at the pixels of view `r`.
+fn fuse_view(
+    r: usize,
+    reference: &FusionView,
+    others: &[(usize, &FusionView)],
+    geometry: &[Geometry],
+    ref_used: Option<&[u64]>,
+    cfg: &FusionConfig,
+    cos_normal: f64,
+) -> Vec<Fused> {
+    let map = &reference.map;
+    let (w, h) = (map.width, map.height);
+    let g = &geometry[r];
+    let rows: Vec<Vec<Fused>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut out = Vec::new();
+            for x in 0..w {
+                let i = y * w + x;
+                let d = map.depth[i] as f64;
+                if d <= 0.0 || ref_used.is_some_and(|u| u[i / 64] >> (i % 64) & 1 == 1) {
+                    continue;
+                }
+                let p = g.world(x as f64, y as f64, d);
+                let n_cam = map.normal[i];
+                let n = g.r.transpose()
+                    * Vector3::new(n_cam[0] as f64, n_cam[1] as f64, n_cam[2] as f64);
+                let mut sum_p = p;
+                let mut sum_n = n;
+                let c = reference.rgb.get_pixel(x as u32, y as u32).0;
+                let mut sum_c = [c[0] as u32, c[1] as u32, c[2] as u32];
+                let mut views = vec![r as u32];
+                let mut used = Vec::new();
+                for &(j, other) in others {
+                    let gj = &geometry[j];
+                    let Some((u, v, z)) = gj.project(&p) else {
+                        continue;
+                    };
+                    let (ix, iy) = (u.round(), v.round());
+                    let om = &other.map;
+                    if ix < 0.0 || iy < 0.0 || ix >= om.width as f64 || iy >= om.height as f64 {
+                        continue;
+                    }
+                    let k = iy as usize * om.width + ix as usize;
+                    let dj = om.depth[k] as f64;
+                    if dj <= 0.0 || (z - dj).abs() > cfg.max_depth_error * dj {
+                        continue;
+                    }
+                    let pj = gj.world(ix, iy, dj);
+                    let Some((bu, bv, _)) = g.project(&pj) else {
+                        continue;
+                    };
+                    if (bu - x as f64).hypot(bv - y as f64) > cfg.max_reproj_px {
+                        continue;
+                    }
+                    let nj_cam = om.normal[k];
+                    let nj = gj.r.transpose()
+                        * Vector3::new(nj_cam[0] as f64, nj_cam[1] as f64, nj_cam[2] as f64);
+                    if n.dot(&nj) < cos_normal {
+                        continue;
+                    }
+                    sum_p += pj;
+                    sum_n += nj;
+                    let cj = other.rgb.get_pixel(ix as u32, iy as u32).0;
+                    for ch in 0..3 {
+                        sum_c[ch] += cj[ch] as u32;
+                    }
+                    views.push(j as u32);
+                    used.push((j as u32, k as u32));
+                }
+                if views.len() < cfg.min_views {
+                    continue;
+                }
+                let count = views.len() as f64;
+                let Some(normal) = sum_n.try_normalize(1e-12) else {
+                    continue;
+                };
+                out.push(Fused {
+                    position: Point3::from(sum_p / count),
+                    normal,
+                    color: sum_c.map(|s| (s as f64 / count).round() as u8),
+                    views,
+                    used,
+                });
+            }
+            out
+        })
+        .collect();
+    rows.into_iter().flatten().collect()
+}
+
+/// The temporary record file: per point 3 f32 position, 3 f32 normal, 3 u8 colour, u32 view
+/// count, u32 views.
+struct Records {
+    path: PathBuf,
+    out: Option<BufWriter<File>>,
+    count: u64,
+    view_sum: u64,
+}
+
+impl Records {
+    fn create(path: &Path) -> Result<Records, DenseError> {
+        let file = File::create(path).map_err(|e| FormatError::io(path, e))?;
+        Ok(Records {
+            path: path.to_path_buf(),
+            out: Some(BufWriter::with_capacity(1 << 20, file)),
+            count: 0,
+            view_sum: 0,
+        })
+    }
+
+    fn push(&mut self, p: &Fused) -> Result<(), DenseError> {
+        let mut buf = Vec::with_capacity(32 + 4 * p.views.len());
+        for v in p.position.coords.iter().chain(p.normal.iter()) {
+            buf.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+        buf.extend_from_slice(&p.color);
+        buf.extend_from_slice(&(p.views.len() as u32).to_le_bytes());
+        for v in &p.views {
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+        let out = self.out.as_mut().expect("open until finish");
+        out.write_all(&buf)
+            .map_err(|e| FormatError::io(&self.path, e))?;
+        self.count += 1;
+        self.view_sum += p.views.len() as u64;
+        Ok(())
+    }
+
+    /// Writes `ply` and `<ply>.vis` from the records and removes the record file.
+    fn finish(mut self, ply: &Path) -> Result<FusionSummary, DenseError> {
+        let result = self.write_outputs(ply);
+        let _ = std::fs::remove_file(&self.path);
+        result
+    }
+
+    fn write_outputs(&mut self, ply: &Path) -> Result<FusionSummary, DenseError> {
+        let out = self.out.take().expect("open until finish");
+        out.into_inner()
+            .map_err(|e| FormatError::io(&self.path, e.into_error()))?;
+        let mut layout = PlyLayout::new(PlyFormat::BinaryLittleEndian, self.count, 0);
+        layout.normals = true;
+        layout.colors = true;
+        layout
+            .comments
+            .push("fresco dense: fused points (COLMAP stereo_fusion layout)".into());
+        let mut writer = PlyWriter::create(ply, layout)?;
+        let vis = vis_path(ply);
+        let mut reader = self.reader()?;
+        let path = self.path.clone();
+        let count = self.count;
+        write_atomically(&vis, |vw| {
+            vw.write_all(&count.to_le_bytes())?;
+            for _ in 0..count {
+                let (vertex, views) = read_record(&mut reader)?;
+                writer
+                    .write_vertex(&vertex)
+                    .map_err(|e| std::io::Error::other(e.to_string()))?;
+                vw.write_all(&(views.len() as u32).to_le_bytes())?;
+                for v in views {
+                    vw.write_all(&v.to_le_bytes())?;
+                }
+            }
+            Ok(())
+        })
+        .map_err(|e| match e {
+            FormatError::Io { error, .. } => FormatError::io(&path, error),
+            other => other,
+        })?;
+        writer.finish()?;
+        Ok(FusionSummary {
+            points: self.count,
+            ply: ply.to_path_buf(),
+            vis,
+            mean_views: if self.count > 0 {
+                self.view_sum as f64 / self.count as f64
+            } else {
+                0.0
+            },
+        })
+    }
+
+    fn reader(&self) -> Result<BufReader<File>, DenseError> {
+        let file = File::open(&self.path).map_err(|e| FormatError::io(&self.path, e))?;
+        Ok(BufReader::with_capacity(1 << 20, file))
+    }
+}
+
+fn read_record(r: &mut impl Read) -> std::io::Result<(PlyVertex, Vec<u32>)> {
+    let mut head = [0u8; 31];
+    r.read_exact(&mut head)?;
+    let f = |k: usize| f32::from_le_bytes(head[4 * k..4 * k + 4].try_into().unwrap_or([0; 4]));
+    let position = Point3::new(f(0) as f64, f(1) as f64, f(2) as f64);
+    let normal = Vector3::new(f(3) as f64, f(4) as f64, f(5) as f64);
+    let color = [head[24], head[25], head[26]];
+    let n = u32::from_le_bytes([head[27], head[28], head[29], head[30]]) as usize;
+    let mut views = vec![0u32; n];
+    let mut buf = vec![0u8; 4 * n];
+    r.read_exact(&mut buf)?;
+    for (v, c) in views.iter_mut().zip(buf.chunks_exact(4)) {
+        *v = u32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+    }
+    let mut vertex = PlyVertex::new(position);
+    vertex.normal = Some(normal);
+    vertex.color = Some(color);
+    Ok((vertex, views))
+}
+
+/// `<ply>.vis`.
+pub fn vis_path(ply: &Path) -> PathBuf {
+    let mut name = ply.as_os_str().to_owned();
+    name.push(".vis");
+    PathBuf::from(name)
+}
+
+/// Reads a `fused.ply.vis` file: the visibility list of every point.
+pub fn read_vis(path: &Path) -> Result<Vec<Vec<u32>>, FormatError> {
+    let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, e))?;
+    let mut pos = 0usize;
+    let mut take = |n: usize| -> Result<&[u8], FormatError> {
+        let s = bytes.get(pos..pos + n).ok_or_else(|| {
+            FormatError::binary(path, pos as u64, "the file ends inside a record")
+        })?;
+        pos += n;
+        Ok(s)
+    };
+    let count = u64::from_le_bytes(take(8)?.try_into().unwrap_or([0; 8]));
+    let mut out = Vec::new();
+    for _ in 0..count {
+        let n = u32::from_le_bytes(take(4)?.try_into().unwrap_or([0; 4])) as usize;
+        let body = take(4 * n)?;
+        out.push(
+            body.chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect(),
+        );
+    }
+    Ok(out)
+}

@@ -1,0 +1,996 @@
+//! PatchMatch multi-view stereo: a depth and a normal per pixel of a reference view, found by
+//! random search over slanted planes (Bleyer, Rhemann and Rother, "PatchMatch Stereo", BMVC
+//! 2011), propagated on a red-black checkerboard so that every pixel of one colour updates
+//! in parallel (Galliani, Lasinger and Schindler, "Massively Parallel Multiview Stereopsis by
+//! Surface Normal Diffusion" (Gipuma), ICCV 2015; Xu and Tao, "Multi-Scale Geometric
+//! Consistency Guided Multi-View Stereo" (ACMH/ACMM), CVPR 2019).
+//!
+//! **Hypothesis.** A pixel `p` holds a plane: its depth `d` (camera-frame `z`) along the ray
+//! `K^-1 p` and its normal `n` (reference camera frame, facing the camera: `n . X < 0`). The
+//! plane induces, for every source view `s` with `X_s = R X + t`, the homography
+//! `H_s = K_s (R - t n^T / delta) K^-1` with `delta = -n . X_p` (Hartley and Zisserman,
+//! result 13.1), so that the support window of `p` maps to the source through one 3x3
+//! matrix. With `A_s = K_s R K^-1` and `b_s = K_s t` precomputed per source, a hypothesis
+//! costs 9 multiply-adds per source: `H_s = A_s - b_s m^T`, `m = K^-T n / delta`.
+//!
+//! **Matching cost.** `1 - NCC` with bilateral weights (adaptive support weights, Yoon and
+//! Kweon 2006, as in Gipuma and ACMM) over a sparsely sampled window: every `window_step`-th
+//! pixel of a `(2 r + 1)^2` window (6x6 = 36 samples for r = 5, step 2). The weights
+//! `w_k = exp(-|I_k - I_p| / sigma_color - |k - p| / sigma_spatial)`, normalised to sum 1,
+//! and the reference's weighted, normalised values `a_k = w_k (I_k - mu) / sigma` are
+//! computed once per pixel visit and shared by every hypothesis and source, so that each
+//! window sample costs one projective division, one bilinear lookup and three fused
+//! multiply-adds: `NCC = sum(a_k s_k) / sqrt(sum(w_k s_k^2) - sum(w_k s_k)^2)`.
+//! A source whose warped window leaves its image (checked at the four warped corners: the
+//! image of a rectangle under a homography with positive `z` is the convex quadrilateral of
+//! its corners) or that is flat there costs [`MAX_COST`].
+//!
+//! **Multi-view aggregation.** The mean of the `top_k` smallest source costs: occluded or
+//! otherwise bad sources are ignored per pixel and per hypothesis (the "best-k" strategy of
+//! Kang, Szeliski and Chai 2001).
+//!
+//! **Search.** Random initial planes (depth uniform in inverse depth over the view's range,
+//! normal uniform over the hemisphere facing the camera); then `iterations` times, for each
+//! colour: the best hypothesis (lowest stored cost) of each of 8 neighbourhood regions of the
+//! other colour (4 strips of 11 pixels along the axes, 4 triangles of 12 pixels towards the
+//! diagonals: ACMH's adaptive checkerboard sampling) is transferred to `p` along its plane
+//! and evaluated, the best kept; then six random refinements (new or perturbed depth, new or
+//! perturbed normal and both; Gipuma/ACMH) with perturbations that shrink each iteration.
+//!
+//! Everything is deterministic: the random draws of pixel `i` in iteration `t` come from
+//! `Rng::for_item(seed ^ t, i)`; pixels of one colour read only the other colour.
+
+use fresco_core::Rng;
+use fresco_core::nalgebra::{Matrix3, Vector3};
+use fresco_core::photo::GreyImage;
+use fresco_core::{Camera, Rigid3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Most source views a reference view can use.
+pub const MAX_SOURCES: usize = 16;
+/// Cost of an impossible or unmatched hypothesis (`1 - NCC` lies in [0, 2]).
+pub const MAX_COST: f32 = 2.0;
+/// Most window samples (radius 7 at step 2: 8x8).
+const MAX_WINDOW: usize = 64;
+
+/// PatchMatch settings; see the module documentation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PatchMatchConfig {
+    /// Half size of the support window in pixels. Default 5 (11x11, as Gipuma and ACMM).
+    pub window_radius: usize,
+    /// Distance between window samples in pixels. Default 2 (6x6 samples).
+    pub window_step: usize,
+    /// Colour scale of the bilateral weights (grey levels in [0, 1]). Default 0.05.
+    pub sigma_color: f32,
+    /// Distance scale of the bilateral weights, pixels. Default 12.
+    pub sigma_spatial: f32,
+    /// Propagation + refinement sweeps (both colours). Default 6.
+    pub iterations: usize,
+    /// Sources whose costs are averaged per hypothesis (the best ones). Default 2.
+    pub top_k: usize,
+    /// Pixels whose window's weighted standard deviation is below this (grey levels in
+    /// [0, 1]) carry no texture and get no depth. Default 0.002 (half a grey level of 8-bit
+    /// images, above their quantisation noise).
+    pub min_ref_std: f32,
+    /// Pixels whose final cost is above this get no depth (`1 - NCC`). Default 0.5.
+    pub max_cost: f32,
+}
+
+impl Default for PatchMatchConfig {
+    fn default() -> Self {
+        PatchMatchConfig {
+            window_radius: 5,
+            window_step: 2,
+            sigma_color: 0.05,
+            sigma_spatial: 12.0,
+            iterations: 6,
+            top_k: 2,
+            min_ref_std: 0.002,
+            max_cost: 0.5,
+        }
+    }
+}
+
+impl PatchMatchConfig {
+    /// The first field with an unusable value, by name.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        if self.window_step == 0 || self.window_radius == 0 {
+            return Err((
+                "window_radius",
+                format!(
+                    "radius {} and step {} must both be positive",
+                    self.window_radius, self.window_step
+                ),
+            ));
+        }
+        let side = 2 * self.window_radius / self.window_step + 1;
+        if side * side > MAX_WINDOW {
+            return Err((
+                "window_radius",
+                format!(
+                    "radius {} at step {} samples {side}x{side} pixels, more than {MAX_WINDOW}",
+                    self.window_radius, self.window_step
+                ),
+            ));
+        }
+        for (name, v) in [
+            ("sigma_color", self.sigma_color),
+            ("sigma_spatial", self.sigma_spatial),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((name, format!("{v} is not a positive number")));
+            }
+        }
+        if self.iterations == 0 {
+            return Err(("iterations", "at least one iteration is needed".into()));
+        }
+        if self.top_k == 0 || self.top_k > MAX_SOURCES {
+            return Err((
+                "top_k",
+                format!("{} is outside 1..={MAX_SOURCES}", self.top_k),
+            ));
+        }
+        if !(self.min_ref_std.is_finite() && self.min_ref_std >= 0.0) {
+            return Err((
+                "min_ref_std",
+                format!("{} is not a non-negative number", self.min_ref_std),
+            ));
+        }
+        if !(self.max_cost.is_finite() && self.max_cost > 0.0 && self.max_cost <= MAX_COST) {
+            return Err((
+                "max_cost",
+                format!("{} is outside (0, {MAX_COST}]", self.max_cost),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Pinhole intrinsics in array coordinates: the centre of pixel (`i`, `j`) is at (`i`, `j`)
+/// (COLMAP's pixel convention minus 0.5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Intrinsics {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl Intrinsics {
+    /// The intrinsics of a pinhole `camera` (its distortion, if any, is ignored).
+    pub fn of(camera: &Camera) -> Intrinsics {
+        let c = camera.principal_point();
+        Intrinsics {
+            fx: camera.focal_x(),
+            fy: camera.focal_y(),
+            cx: c.x - 0.5,
+            cy: c.y - 0.5,
+        }
+    }
+
+    /// The intrinsics of the image down-sampled by `factor` (pixel `i` of the smaller image
+    /// covers pixels `factor i .. factor (i + 1)`).
+    pub fn downscaled(&self, factor: f64) -> Intrinsics {
+        Intrinsics {
+            fx: self.fx / factor,
+            fy: self.fy / factor,
+            cx: (self.cx + 0.5) / factor - 0.5,
+            cy: (self.cy + 0.5) / factor - 0.5,
+        }
+    }
+
+    pub fn matrix(&self) -> Matrix3<f64> {
+        Matrix3::new(self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
+    }
+
+    pub fn inverse_matrix(&self) -> Matrix3<f64> {
+        Matrix3::new(
+            1.0 / self.fx,
+            0.0,
+            -self.cx / self.fx,
+            0.0,
+            1.0 / self.fy,
+            -self.cy / self.fy,
+            0.0,
+            0.0,
+            1.0,
+        )
+    }
+
+    /// The ray `K^-1 (x, y, 1)` through array position (`x`, `y`).
+    #[inline]
+    fn ray(&self, x: f32, y: f32) -> [f32; 3] {
+        [
+            (x - self.cx as f32) / self.fx as f32,
+            (y - self.cy as f32) / self.fy as f32,
+            1.0,
+        ]
+    }
+}
+
+/// One source view of a reference view: its image, intrinsics and pose relative to the
+/// reference.
+pub struct Source<'a> {
+    pub image: &'a GreyImage,
+    pub k: Intrinsics,
+    pub src_from_ref: Rigid3,
+}
+
+/// Everything PatchMatch needs for one reference view at one scale.
+pub struct Problem<'a> {
+    pub image: &'a GreyImage,
+    pub k: Intrinsics,
+    pub sources: Vec<Source<'a>>,
+    /// Nearest and farthest depth to draw hypotheses from.
+    pub depth_range: (f32, f32),
+    /// Pixels to reconstruct (row-major, non-zero = yes); `None`: all.
+    pub mask: Option<&'a [u8]>,
+}
+
+/// A depth map with normals and costs, row-major. Depth 0 marks pixels without depth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DepthMap {
+    pub width: usize,
+    pub height: usize,
+    /// Camera-frame `z`, world units; 0 where unknown.
+    pub depth: Vec<f32>,
+    /// Unit normal in the camera frame (facing the camera); zero where unknown.
+    pub normal: Vec<[f32; 3]>,
+    /// Matching cost `1 - NCC` in [0, 2]; [`MAX_COST`] where unknown.
+    pub cost: Vec<f32>,
+}
+
+impl DepthMap {
+    pub fn empty(width: usize, height: usize) -> DepthMap {
+        DepthMap {
+            width,
+            height,
+            depth: vec![0.0; width * height],
+            normal: vec![[0.0; 3]; width * height],
+            cost: vec![MAX_COST; width * height],
+        }
+    }
+
+    /// Fraction of pixels with a depth.
+    pub fn valid_fraction(&self) -> f64 {
+        if self.depth.is_empty() {
+            return 0.0;
+        }
+        self.depth.iter().filter(|&&d| d > 0.0).count() as f64 / self.depth.len() as f64
+    }
+}
+
+/// A plane hypothesis and its cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Hyp {
+    depth: f32,
+    normal: [f32; 3],
+    cost: f32,
+}
+
+const INVALID: Hyp = Hyp {
+    depth: 0.0,
+    normal: [0.0; 3],
+    cost: f32::INFINITY,
+};
+
+/// Per-source constants of the plane-induced homography (see the module documentation).
+struct SourceGeometry<'a> {
+    image: &'a GreyImage,
+    /// `K_s R K^-1`, row-major.
+    a: [f32; 9],
+    /// `K_s t`.
+    b: [f32; 3],
+    /// Largest array coordinate a bilinear lookup may start from (`size - 1`, minus a margin).
+    max_x: f32,
+    max_y: f32,
+}
+
+/// The reference window of one pixel: normalised weights and weighted, normalised values.
+struct Window {
+    w: [f32; MAX_WINDOW],
+    a: [f32; MAX_WINDOW],
+}
+
+/// Offsets (dx, dy) of the propagation regions: all of the other colour (odd |dx| + |dy|).
+fn regions() -> Vec<Vec<(i32, i32)>> {
+    let mut out = Vec::new();
+    for (sx, sy) in [(0, -1), (0, 1), (-1, 0), (1, 0)] {
+        out.push(
+            (0..11)
+                .map(|k| (sx * (2 * k + 1), sy * (2 * k + 1)))
+                .collect(),
+        );
+    }
+    for (sx, sy) in [(-1, -1), (1, -1), (-1, 1), (1, 1)] {
+        let mut r = Vec::new();
+        for i in 1..7 {
+            for j in 1..7 {
+                if (i + j) % 2 == 1 && i + j <= 7 {
+                    r.push((sx * i, sy * j));
+                }
+            }
+        }
+        out.push(r);
+    }
+    out
+}
+
+/// The checkerboard: hypotheses of the two colours in separate arrays (pixel (x, y) has
+/// colour `(x + y) % 2` and index `y * half + x / 2` in its array), so that a parallel pass
+/// over one colour borrows it mutably and the other immutably.
+struct Board {
+    width: usize,
+    height: usize,
+    half: usize,
+    cells: [Vec<Hyp>; 2],
+}
+
+impl Board {
+    fn new(width: usize, height: usize) -> Board {
+        let half = width.div_ceil(2);
+        Board {
+            width,
+            height,
+            half,
+            cells: [vec![INVALID; half * height], vec![INVALID; half * height]],
+        }
+    }
+
+    #[inline]
+    fn get(&self, x: usize, y: usize) -> &Hyp {
+        &self.cells[(x + y) & 1][y * self.half + x / 2]
+    }
+
+    fn to_depth_map(&self, max_cost: f32) -> DepthMap {
+        let mut map = DepthMap::empty(self.width, self.height);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let h = self.get(x, y);
+                let i = y * self.width + x;
+                if h.depth > 0.0 && h.cost <= max_cost {
+                    map.depth[i] = h.depth;
+                    map.normal[i] = h.normal;
+                    map.cost[i] = h.cost;
+                }
+            }
+        }
+        map
+    }
+}
+
+/// A PatchMatch run on one reference view.
+struct Solver<'a> {
+    problem: &'a Problem<'a>,
+    cfg: &'a PatchMatchConfig,
+    sources: Vec<SourceGeometry<'a>>,
+    /// Window sample offsets along one axis.
+    offsets: Vec<i32>,
+    /// Spatial part of the bilateral weights, per window sample.
+    spatial: Vec<f32>,
+    regions: Vec<Vec<(i32, i32)>>,
+    /// Pixels that are reconstructed (textured, inside the mask, away from the border).
+    active: Vec<bool>,
+    seed: u64,
+}
+
+impl<'a> Solver<'a> {
+    fn new(problem: &'a Problem<'a>, cfg: &'a PatchMatchConfig, seed: u64) -> Solver<'a> {
+        let k_inv = problem.k.inverse_matrix();
+        let sources = problem
+            .sources
+            .iter()
+            .map(|s| {
+                let r = s.src_from_ref.rotation.to_rotation_matrix().into_inner();
+                let ks = s.k.matrix();
+                let a = ks * r * k_inv;
+                let b = ks * s.src_from_ref.translation;
+                let mut af = [0.0f32; 9];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        af[i * 3 + j] = a[(i, j)] as f32;
+                    }
+                }
+                SourceGeometry {
+                    image: s.image,
+                    a: af,
+                    b: [b.x as f32, b.y as f32, b.z as f32],
+                    max_x: s.image.width as f32 - 1.001,
+                    max_y: s.image.height as f32 - 1.001,
+                }
+            })
+            .collect();
+        let r = cfg.window_radius as i32;
+        let step = cfg.window_step as i32;
+        let offsets: Vec<i32> = (0..)
+            .map(|k| -r + k * step)
+            .take_while(|&o| o <= r)
+            .collect();
+        let mut spatial = Vec::new();
+        for &dy in &offsets {
+            for &dx in &offsets {
+                let dist = ((dx * dx + dy * dy) as f32).sqrt();
+                spatial.push((-dist / cfg.sigma_spatial).exp());
+            }
+        }
+        let mut solver = Solver {
+            problem,
+            cfg,
+            sources,
+            offsets,
+            spatial,
+            regions: regions(),
+            active: Vec::new(),
+            seed,
+        };
+        solver.active = solver.active_pixels();
+        solver
+    }
+
+    fn width(&self) -> usize {
+        self.problem.image.width
+    }
+    fn height(&self) -> usize {
+        self.problem.image.height
+    }
+
+    /// Pixels inside the mask, at least a window radius from the border, whose window
+    /// carries texture.
+    fn active_pixels(&self) -> Vec<bool> {
+        let (w, h) = (self.width(), self.height());
+        let r = self.cfg.window_radius;
+        let mut active = vec![false; w * h];
+        if w <= 2 * r || h <= 2 * r || self.sources.is_empty() {
+            return active;
+        }
+        active.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            if y < r || y + r >= h {
+                return;
+            }
+            for (x, a) in row.iter_mut().enumerate().take(w - r).skip(r) {
+                if let Some(mask) = self.problem.mask
+                    && mask[y * w + x] == 0
+                {
+                    continue;
+                }
+                *a = self.window(x, y).is_some();
+            }
+        });
+        active
+    }
+
+    /// The reference window at (`x`, `y`), or `None` when it is flat.
+    #[inline]
+    fn window(&self, x: usize, y: usize) -> Option<Window> {
+        let img = self.problem.image;
+        let w = img.width;
+        let centre = img.data[y * w + x];
+        let mut win = Window {
+            w: [0.0; MAX_WINDOW],
+            a: [0.0; MAX_WINDOW],
+        };
+        let mut values = [0.0f32; MAX_WINDOW];
+        let inv_sigma_color = 1.0 / self.cfg.sigma_color;
+        let mut k = 0;
+        let mut total = 0.0f32;
+        for &dy in &self.offsets {
+            let row = ((y as i32 + dy) as usize) * w;
+            for &dx in &self.offsets {
+                let v = img.data[row + (x as i32 + dx) as usize];
+                let weight = self.spatial[k] * (-(v - centre).abs() * inv_sigma_color).exp();
+                values[k] = v;
+                win.w[k] = weight;
+                total += weight;
+                k += 1;
+            }
+        }
+        let n = k;
+        let inv_total = 1.0 / total;
+        let mut mean = 0.0f32;
+        for (w, v) in win.w[..n].iter_mut().zip(&values[..n]) {
+            *w *= inv_total;
+            mean += *w * v;
+        }
+        let var: f32 = win.w[..n]
+            .iter()
+            .zip(&values[..n])
+            .map(|(w, v)| w * (v - mean) * (v - mean))
+            .sum();
+        let std = var.sqrt();
+        if std.is_nan() || std <= self.cfg.min_ref_std || std <= 1e-6 {
+            return None;
+        }
+        let inv_std = 1.0 / std;
+        for ((a, w), v) in win.a[..n].iter_mut().zip(&win.w[..n]).zip(&values[..n]) {
+            *a = w * (v - mean) * inv_std;
+        }
+        Some(win)
+    }
+
+    /// `1 - NCC` of the window at (`x`, `y`) against one source through homography `h`.
+    #[inline]
+    fn source_cost(
+        &self,
+        src: &SourceGeometry,
+        h: &[f32; 9],
+        x: usize,
+        y: usize,
+        win: &Window,
+    ) -> f32 {
+        let r = self.cfg.window_radius as f32;
+        let last = *self.offsets.last().unwrap_or(&0) as f32;
+        let (x0, y0) = (x as f32 - r, y as f32 - r);
+        let (x1, y1) = (x as f32 + last, y as f32 + last);
+        for (cx, cy) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+            let z = h[6] * cx + h[7] * cy + h[8];
+            if z <= 1e-6 {
+                return MAX_COST;
+            }
+            let u = (h[0] * cx + h[1] * cy + h[2]) / z;
+            let v = (h[3] * cx + h[4] * cy + h[5]) / z;
+            // Also rejects NaN.
+            if !(u >= 0.0 && v >= 0.0 && u <= src.max_x && v <= src.max_y) {
+                return MAX_COST;
+            }
+        }
+        let step = self.cfg.window_step as f32;
+        let (dhx, dhy, dhz) = (h[0] * step, h[3] * step, h[6] * step);
+        let img = &src.image.data;
+        let iw = src.image.width;
+        let (mut sa, mut sw, mut sww) = (0.0f32, 0.0f32, 0.0f32);
+        let m = self.offsets.len();
+        let mut k = 0;
+        for j in 0..m {
+            let yy = y0 + j as f32 * step;
+            let mut hx = h[0] * x0 + h[1] * yy + h[2];
+            let mut hy = h[3] * x0 + h[4] * yy + h[5];
+            let mut hz = h[6] * x0 + h[7] * yy + h[8];
+            for _ in 0..m {
+                let iz = 1.0 / hz;
+                let u = hx * iz;
+                let v = hy * iz;
+                let (ui, vi) = (u as usize, v as usize);
+                let (fu, fv) = (u - ui as f32, v - vi as f32);
+                let base = vi * iw + ui;
+                // SAFETY: the four corners of the warped window lie in
+                // [0, width - 1.001] x [0, height - 1.001] with positive z, so every sample
+                // (a point of their convex hull up to rounding far below the 0.001 margin)
+                // has 0 <= ui <= width - 2 and 0 <= vi <= height - 2.
+                let (p00, p01, p10, p11) = unsafe {
+                    (
+                        *img.get_unchecked(base),
+                        *img.get_unchecked(base + 1),
+                        *img.get_unchecked(base + iw),
+                        *img.get_unchecked(base + iw + 1),
+                    )
+                };
+                let top = p00 + (p01 - p00) * fu;
+                let bottom = p10 + (p11 - p10) * fu;
+                let s = top + (bottom - top) * fv;
+                let wk = win.w[k];
+                sa += win.a[k] * s;
+                sw += wk * s;
+                sww += wk * s * s;
+                k += 1;
+                hx += dhx;
+                hy += dhy;
+                hz += dhz;
+            }
+        }
+        let var = sww - sw * sw;
+        if var <= 1e-10 {
+            return MAX_COST;
+        }
+        (1.0 - sa / var.sqrt()).clamp(0.0, MAX_COST)
+    }
+
+    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`).
+    fn cost(&self, x: usize, y: usize, depth: f32, normal: &[f32; 3], win: &Window) -> f32 {
+        let k = &self.problem.k;
+        let ray = k.ray(x as f32, y as f32);
+        let delta = -depth * dot(normal, &ray);
+        if delta.is_nan() || delta <= 0.0 {
+            return MAX_COST;
+        }
+        // m = K^-T n / delta.
+        let fx = k.fx as f32;
+        let fy = k.fy as f32;
+        let m = [
+            normal[0] / fx / delta,
+            normal[1] / fy / delta,
+            (normal[2] - normal[0] * k.cx as f32 / fx - normal[1] * k.cy as f32 / fy) / delta,
+        ];
+        let mut costs = [MAX_COST; MAX_SOURCES];
+        let n = self.sources.len();
+        for (c, src) in costs.iter_mut().zip(&self.sources) {
+            let mut h = src.a;
+            for i in 0..3 {
+                for j in 0..3 {
+                    h[i * 3 + j] -= src.b[i] * m[j];
+                }
+            }
+            *c = self.source_cost(src, &h, x, y, win);
+        }
+        aggregate(&mut costs[..n], self.cfg.top_k)
+    }
+
+    /// The depth at (`x`, `y`) of the plane that `h` holds at (`hx`, `hy`).
+    #[inline]
+    fn transfer(&self, h: &Hyp, hx: usize, hy: usize, x: usize, y: usize) -> Option<f32> {
+        let k = &self.problem.k;
+        let from = k.ray(hx as f32, hy as f32);
+        let to = k.ray(x as f32, y as f32);
+        let denom = dot(&h.normal, &to);
+        if denom >= -1e-6 {
+            return None;
+        }
+        let d = h.depth * dot(&h.normal, &from) / denom;
+        (d.is_finite() && d > 0.0).then_some(d)
+    }
+
+    fn random_depth(&self, rng: &mut Rng) -> f32 {
+        let (lo, hi) = self.problem.depth_range;
+        let (a, b) = (1.0 / hi as f64, 1.0 / lo as f64);
+        (1.0 / rng.range(a, b)) as f32
+    }
+
+    fn random_normal(&self, rng: &mut Rng, ray: &[f32; 3]) -> [f32; 3] {
+        loop {
+            let v = [
+                rng.normal() as f32,
+                rng.normal() as f32,
+                rng.normal() as f32,
+            ];
+            let len = dot(&v, &v).sqrt();
+            if len < 1e-3 {
+                continue;
+            }
+            let mut n = v.map(|c| c / len);
+            if dot(&n, ray) > 0.0 {
+                n = n.map(|c| -c);
+            }
+            // Planes almost along the ray are useless (and ill-conditioned).
+            if -dot(&n, ray) / dot(ray, ray).sqrt() > 0.1 {
+                return n;
+            }
+        }
+    }
+
+    fn perturb_normal(&self, rng: &mut Rng, n: &[f32; 3], ray: &[f32; 3], amount: f32) -> [f32; 3] {
+        for _ in 0..8 {
+            let v = [
+                n[0] + amount * rng.normal() as f32,
+                n[1] + amount * rng.normal() as f32,
+                n[2] + amount * rng.normal() as f32,
+            ];
+            let len = dot(&v, &v).sqrt();
+            if len < 1e-6 {
+                continue;
+            }
+            let p = v.map(|c| c / len);
+            if -dot(&p, ray) / dot(ray, ray).sqrt() > 0.1 {
+                return p;
+            }
+        }
+        *n
+    }
+
+    /// Random planes with their costs at every active pixel.
+    fn initialise(&self, board: &mut Board) {
+        let (w, half) = (self.width(), board.half);
+        for colour in 0..2 {
+            board.cells[colour]
+                .par_chunks_mut(half)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (i, cell) in row.iter_mut().enumerate() {
+                        let x = 2 * i + ((colour + y) & 1);
+                        if x >= w || !self.active[y * w + x] {
+                            continue;
+                        }
+                        let Some(win) = self.window(x, y) else {
+                            continue;
+                        };
+                        let mut rng = Rng::for_item(self.seed, (y * w + x) as u64);
+                        let ray = self.problem.k.ray(x as f32, y as f32);
+                        let depth = self.random_depth(&mut rng);
+                        let normal = self.random_normal(&mut rng, &ray);
+                        let cost = self.cost(x, y, depth, &normal, &win);
+                        *cell = Hyp {
+                            depth,
+                            normal,
+                            cost,
+                        };
+                    }
+                });
+        }
+    }
+
+    /// One propagation + refinement pass over the pixels of `colour`.
+    fn sweep(&self, board: &mut Board, colour: usize, iteration: usize) {
+        let (w, h, half) = (self.width(), self.height(), board.half);
+        let [red, black] = &mut board.cells;
+        let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
+            (red, black)
+        } else {
+            (black, red)
+        };
+        let seed = self.seed ^ (0x5EED_0000 + (2 * iteration + colour + 1) as u64);
+        // Perturbations shrink by half per iteration (Gipuma's refinement schedule).
+        let scale = 0.5f32.powi(iteration as i32);
+        let depth_amount = (0.05 * scale).max(0.002);
+        let normal_amount = (0.5 * scale).max(0.02);
+        current
+            .par_chunks_mut(half)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (i, cell) in row.iter_mut().enumerate() {
+                    let x = 2 * i + ((colour + y) & 1);
+                    if x >= w || !self.active[y * w + x] {
+                        continue;
+                    }
+                    let Some(win) = self.window(x, y) else {
+                        continue;
+                    };
+                    let mut best = *cell;
+                    // Propagation: the cheapest hypothesis of each region, moved along its plane.
+                    for region in &self.regions {
+                        let mut pick: Option<(Hyp, usize, usize)> = None;
+                        for &(dx, dy) in region {
+                            let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                            if nx < 0 || ny < 0 || nx >= w as i32 || ny >= h as i32 {
+                                continue;
+                            }
+                            let (nx, ny) = (nx as usize, ny as usize);
+                            let cand = &other[ny * half + nx / 2];
+                            if cand.depth > 0.0 && pick.is_none_or(|(p, _, _)| cand.cost < p.cost) {
+                                pick = Some((*cand, nx, ny));
+                            }
+                        }
+                        if let Some((cand, nx, ny)) = pick
+                            && let Some(depth) = self.transfer(&cand, nx, ny, x, y)
+                        {
+                            let cost = self.cost(x, y, depth, &cand.normal, &win);
+                            if cost < best.cost {
+                                best = Hyp {
+                                    depth,
+                                    normal: cand.normal,
+                                    cost,
+                                };
+                            }
+                        }
+                    }
+                    // Refinement: new and perturbed depths and normals.
+                    let mut rng = Rng::for_item(seed, (y * w + x) as u64);
+                    let ray = self.problem.k.ray(x as f32, y as f32);
+                    let (lo, hi) = self.problem.depth_range;
+                    let random_depth = self.random_depth(&mut rng);
+                    let random_normal = self.random_normal(&mut rng, &ray);
+                    let perturbed_depth = (best.depth
+                        * (1.0 + depth_amount * (2.0 * rng.uniform() as f32 - 1.0)))
+                        .clamp(lo, hi);
+                    let perturbed_normal =
+                        self.perturb_normal(&mut rng, &best.normal, &ray, normal_amount);
+                    let (d0, n0) = (best.depth, best.normal);
+                    let trials = [
+                        (random_depth, n0),
+                        (d0, random_normal),
+                        (random_depth, random_normal),
+                        (perturbed_depth, n0),
+                        (d0, perturbed_normal),
+                        (perturbed_depth, perturbed_normal),
+                    ];
+                    for (depth, normal) in trials {
+                        if depth <= 0.0 || (depth == best.depth && normal == best.normal) {
+                            continue;
+                        }
+                        let cost = self.cost(x, y, depth, &normal, &win);
+                        if cost < best.cost {
+                            best = Hyp {
+                                depth,
+                                normal,
+                                cost,
+                            };
+                        }
+                    }
+                    *cell = best;
+                }
+            });
+    }
+}
+
+/// The mean of the `k` smallest costs (all of them when fewer).
+#[inline]
+fn aggregate(costs: &mut [f32], k: usize) -> f32 {
+    if costs.is_empty() {
+        return MAX_COST;
+    }
+    let k = k.min(costs.len());
+    // Partial selection sort: k is small.
+    let mut sum = 0.0;
+    for i in 0..k {
+        let mut m = i;
+        for j in i + 1..costs.len() {
+            if costs[j] < costs[m] {
+                m = j;
+            }
+        }
+        costs.swap(i, m);
+        sum += costs[i];
+    }
+    sum / k as f32
+}
+
+#[inline]
+fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Runs PatchMatch on `problem` with `seed` and returns its depth map (pixels above
+/// `cfg.max_cost` cleared).
+pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> DepthMap {
+    let (w, h) = (problem.image.width, problem.image.height);
+    let solver = Solver::new(problem, cfg, seed);
+    let mut board = Board::new(w, h);
+    if problem.sources.is_empty() {
+        return board.to_depth_map(cfg.max_cost);
+    }
+    solver.initialise(&mut board);
+    for iteration in 0..cfg.iterations {
+        for colour in 0..2 {
+            solver.sweep(&mut board, colour, iteration);
+        }
+    }
+    board.to_depth_map(cfg.max_cost)
+}
+
+/// The camera-frame point of array position (`x`, `y`) at `depth`.
+pub fn backproject(k: &Intrinsics, x: f64, y: f64, depth: f64) -> Vector3<f64> {
+    Vector3::new((x - k.cx) / k.fx * depth, (y - k.cy) / k.fy * depth, depth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fresco_core::nalgebra::{UnitQuaternion, Vector3};
+
+    /// A procedural texture on the world plane z = 0 (a sum of sines: smooth but rich).
+    fn texture(x: f64, y: f64) -> f32 {
+        let v = 0.5
+            + 0.2 * (7.1 * x + 1.3 * y).sin()
+            + 0.15 * (3.7 * y - 5.3 * x).sin() * (11.0 * x).cos()
+            + 0.1 * (17.0 * y + 2.0 * x).sin();
+        v as f32
+    }
+
+    /// Renders the textured plane z = 0 into a camera at `cam_from_world` (ray casting).
+    fn render(k: &Intrinsics, w: usize, h: usize, cam_from_world: &Rigid3) -> GreyImage {
+        let world_from_cam = cam_from_world.inverse();
+        let mut img = GreyImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let d = world_from_cam.transform_vector(&backproject(k, x as f64, y as f64, 1.0));
+                let c = world_from_cam.translation;
+                let t = -c.z / d.z;
+                let p = c + d * t;
+                img.data[y * w + x] = texture(p.x, p.y);
+            }
+        }
+        img
+    }
+
+    /// A camera at `eye` looking down at the plane z = 0 (tilted by `tilt` about x).
+    fn camera_at(eye: Vector3<f64>, tilt: f64) -> Rigid3 {
+        // Camera looking along -z world: rotate 180 degrees about x, then tilt.
+        let r = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI + tilt);
+        let world_from_cam = Rigid3::new(r, eye);
+        world_from_cam.inverse()
+    }
+
+    #[test]
+    fn recovers_a_slanted_plane_to_a_fraction_of_a_pixel() {
+        let (w, h) = (96, 80);
+        let k = Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 47.5,
+            cy: 39.5,
+        };
+        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.35);
+        let sources: Vec<Rigid3> = [(-0.4, 0.0), (0.4, 0.0), (0.0, 0.3), (0.0, -0.3)]
+            .iter()
+            .map(|&(dx, dy)| camera_at(Vector3::new(dx, dy, 2.0), 0.35))
+            .collect();
+        let ref_img = render(&k, w, h, &reference);
+        let src_imgs: Vec<GreyImage> = sources.iter().map(|p| render(&k, w, h, p)).collect();
+        let problem = Problem {
+            image: &ref_img,
+            k,
+            sources: sources
+                .iter()
+                .zip(&src_imgs)
+                .map(|(p, img)| Source {
+                    image: img,
+                    k,
+                    src_from_ref: *p * reference.inverse(),
+                })
+                .collect(),
+            depth_range: (1.0, 4.0),
+            mask: None,
+        };
+        let cfg = PatchMatchConfig::default();
+        let map = patch_match(&problem, &cfg, 7);
+        // Ground truth: the depth of the plane z = 0 along each ray.
+        let world_from_cam = reference.inverse();
+        let mut errors = Vec::new();
+        let mut normal_errors = Vec::new();
+        let n_true = reference.transform_vector(&Vector3::z());
+        let n_true = if n_true.z > 0.0 { -n_true } else { n_true };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if map.depth[i] <= 0.0 {
+                    continue;
+                }
+                let d = world_from_cam.transform_vector(&backproject(&k, x as f64, y as f64, 1.0));
+                let t = -world_from_cam.translation.z / d.z;
+                errors.push((map.depth[i] as f64 - t).abs() / t);
+                let n = Vector3::new(
+                    map.normal[i][0] as f64,
+                    map.normal[i][1] as f64,
+                    map.normal[i][2] as f64,
+                );
+                normal_errors.push(n.angle(&n_true).to_degrees());
+            }
+        }
+        let valid = errors.len() as f64 / ((w - 10) * (h - 10)) as f64;
+        errors.sort_by(f64::total_cmp);
+        normal_errors.sort_by(f64::total_cmp);
+        let median = errors[errors.len() / 2];
+        let p90 = errors[errors.len() * 9 / 10];
+        // One pixel of disparity at this baseline (0.4 at depth ~2, f = 100) is about 5% of
+        // the depth; a median error of 0.1% is a 50th of a pixel.
+        assert!(valid > 0.7, "valid fraction {valid}");
+        assert!(median < 1e-3 && p90 < 5e-3, "median {median}, p90 {p90}");
+        assert!(normal_errors[normal_errors.len() / 2] < 3.0);
+    }
+
+    #[test]
+    fn same_seed_same_map_whatever_the_thread_count() {
+        let (w, h) = (48, 40);
+        let k = Intrinsics {
+            fx: 50.0,
+            fy: 50.0,
+            cx: 23.5,
+            cy: 19.5,
+        };
+        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.2);
+        let source = camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2);
+        let ref_img = render(&k, w, h, &reference);
+        let src_img = render(&k, w, h, &source);
+        let problem = Problem {
+            image: &ref_img,
+            k,
+            sources: vec![Source {
+                image: &src_img,
+                k,
+                src_from_ref: source * reference.inverse(),
+            }],
+            depth_range: (1.0, 4.0),
+            mask: None,
+        };
+        let cfg = PatchMatchConfig {
+            iterations: 2,
+            ..Default::default()
+        };
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| patch_match(&problem, &cfg, 3))
+        };
+        assert_eq!(run(1), run(3));
+    }
+}
