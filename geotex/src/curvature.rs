@@ -41,10 +41,10 @@ use crate::GeotexError;
 /// Settings of the curvature estimate.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CurvatureConfig {
-    /// Ball radius `r` in mean edge lengths. Default 2: small enough to follow texture
+    /// Ball radius `r` in mean edge lengths. Default: `2.0`: small enough to follow texture
     /// elements a few edges wide, large enough to average over two rings of triangles.
     pub radius_in_edges: f64,
-    /// Column spacing `h = r / columns_per_radius`. Default 6 (about 110 columns per ball;
+    /// Column spacing `h = r / columns_per_radius`. Default: `6.0` (about 110 columns per ball;
     /// on a sphere the per-vertex mean curvature scatters by 0.003/r, `κ1 − κ2` by up to
     /// 0.04/r; 5 costs 30% less for 25% more scatter).
     pub columns_per_radius: f64,
@@ -65,7 +65,7 @@ impl CurvatureConfig {
             return Err(GeotexError::config(
                 "curvature.radius_in_edges",
                 self.radius_in_edges,
-                "expected a finite number > 0",
+                "a finite number > 0",
             ));
         }
         if !(self.columns_per_radius.is_finite() && (1.0..=64.0).contains(&self.columns_per_radius))
@@ -73,7 +73,7 @@ impl CurvatureConfig {
             return Err(GeotexError::config(
                 "curvature.columns_per_radius",
                 self.columns_per_radius,
-                "expected a number in 1..=64",
+                "in 1..=64",
             ));
         }
         Ok(())

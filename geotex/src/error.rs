@@ -1,8 +1,8 @@
 //! What can go wrong in geotex, naming the element or setting at fault.
 
-use fresco_core::MeshError;
 use fresco_core::knn::KnnError;
 use fresco_core::topology::TopologyError;
+use fresco_core::{ConfigError, MeshError};
 
 /// Why a resize (or one of its stages) could not run.
 #[derive(Debug, thiserror::Error)]
@@ -16,13 +16,9 @@ pub enum GeotexError {
     Topology(TopologyError),
     #[error("the mesh has no extent (all vertices coincide)")]
     NoExtent,
-    /// A setting is out of its range; `field` is its name in the config struct.
-    #[error("{field} is {value}: {expected}")]
-    Config {
-        field: &'static str,
-        value: String,
-        expected: &'static str,
-    },
+    /// A setting is out of its range (the error names the field as in `ResizeConfig`).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     /// The target scale or size is not usable along `axis`.
     #[error("{what} along {axis} is {value}: it must be a finite number greater than 0")]
     Target {
@@ -47,10 +43,6 @@ impl GeotexError {
         value: impl std::fmt::Display,
         expected: &'static str,
     ) -> GeotexError {
-        GeotexError::Config {
-            field,
-            value: value.to_string(),
-            expected,
-        }
+        GeotexError::Config(ConfigError::new(field, value, expected))
     }
 }

@@ -34,15 +34,15 @@ use crate::sparse::SymmetricMatrix;
 /// Settings of the fairing.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct FairingConfig {
-    /// `λdt` on texture vertices, in squared mean edge lengths. Default 10 (the paper's
+    /// `λdt` on texture vertices, in squared mean edge lengths. Default: `10.0` (the paper's
     /// value).
     pub step: f64,
     /// Stop when no texture vertex moves more than this many mean edge lengths in a step.
-    /// Default 0.01.
+    /// Default: `0.01`.
     pub tolerance_in_edges: f64,
-    /// Steps at most. Default 60.
+    /// Steps at most. Default: `60`.
     pub max_iterations: usize,
-    /// Give each region's volume back after every step. Default true.
+    /// Give each region's volume back after every step. Default: `true`.
     pub keep_volume: bool,
 }
 
@@ -63,21 +63,21 @@ impl FairingConfig {
             return Err(GeotexError::config(
                 "fairing.step",
                 self.step,
-                "expected a finite number > 0",
+                "a finite number > 0",
             ));
         }
         if !(self.tolerance_in_edges.is_finite() && self.tolerance_in_edges > 0.0) {
             return Err(GeotexError::config(
                 "fairing.tolerance_in_edges",
                 self.tolerance_in_edges,
-                "expected a finite number > 0",
+                "a finite number > 0",
             ));
         }
         if self.max_iterations == 0 {
             return Err(GeotexError::config(
                 "fairing.max_iterations",
                 0,
-                "expected at least 1",
+                "at least 1",
             ));
         }
         Ok(())

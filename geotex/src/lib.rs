@@ -11,7 +11,10 @@
 //!   [`segmentation::segment`] (mean shift), [`fairing::extract`] (implicit fairing and
 //!   displacement), [`protective_grid::optimise`] (non-homogeneous resizing),
 //!   [`measure::feature_sizes`] and [`measure::surface_distance`] (how results are judged),
-//!   [`picture::render`] (shaded pictures).
+//!   [`picture::render`] and [`picture::before_after`] (shaded pictures).
+//!
+//! The CLI verb is `fresco geotex resize` (and `fresco geotex model` for the synthetic
+//! models); bench/geotex.sh measures the three methods on the synthetic models.
 //!
 //! Internal building blocks: `graph.rs` (vertex graph), `sparse.rs` (faer Cholesky),
 //! `refine.rs` (bisection of stretched triangles), `synthesis.rs` (texture optimisation).

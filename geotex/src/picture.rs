@@ -1,4 +1,4 @@
-//! Pictures of a mesh for people to look at (bench/pictures, `fresco resize --png`): smooth
+//! Pictures of a mesh for people to look at (bench/pictures, `fresco geotex resize --png`): smooth
 //! shaded through core's rasteriser, from a fixed direction above and in front, optionally
 //! coloured by segmentation label.
 
@@ -120,4 +120,28 @@ pub fn render(
     let out = raster::render(mesh, &map, &pose, &Shading::Procedural(&shade), &config)
         .map_err(|e| render_error(e.to_string()))?;
     Ok(out.image)
+}
+
+/// The input (left) and the output (right) of a resize, each `size` x `size`, framed on
+/// the union of their boxes so that both are drawn at the same scale, coloured by labels.
+pub fn before_after(
+    input: &Mesh,
+    input_labels: &[u32],
+    output: &Mesh,
+    output_labels: &[u32],
+    size: u32,
+) -> Result<RgbImage, GeotexError> {
+    let (Some(a), Some(b)) = (input.bounding_box(), output.bounding_box()) else {
+        return Err(GeotexError::EmptyMesh);
+    };
+    let mut frame = a;
+    frame.include(&b.min);
+    frame.include(&b.max);
+    let view = View::default();
+    let left = render(input, Some(input_labels), &frame, &view, size, size)?;
+    let right = render(output, Some(output_labels), &frame, &view, size, size)?;
+    let mut out = RgbImage::new(2 * size, size);
+    image::imageops::replace(&mut out, &left, 0, 0);
+    image::imageops::replace(&mut out, &right, size as i64, 0);
+    Ok(out)
 }

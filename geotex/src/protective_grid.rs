@@ -32,16 +32,16 @@ use crate::curvature::Curvatures;
 /// Settings of the protective grid and its optimisation.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct GridConfig {
-    /// Cells along the longest side of the bounding box. Default 24.
+    /// Cells along the longest side of the bounding box. Default: `24`.
     pub cells: usize,
     /// Weight of the squared difference of neighbouring slab scales (a fully vulnerable
-    /// cell weighs up to 1). Default 0.01: transitions spread over a slab or two.
+    /// cell weighs up to 1). Default: `0.01`: transitions spread over a slab or two.
     pub smoothness: f64,
     /// Weight pulling every slab to the homogeneous scale (what an empty grid does).
-    /// Default 0.01.
+    /// Default: `0.01`.
     pub regularisation: f64,
     /// Smallest slab scale, as a fraction of the homogeneous scale along its axis.
-    /// Default 0.2.
+    /// Default: `0.2`.
     pub min_scale: f64,
 }
 
@@ -59,29 +59,21 @@ impl Default for GridConfig {
 impl GridConfig {
     pub fn check(&self) -> Result<(), GeotexError> {
         if !(2..=512).contains(&self.cells) {
-            return Err(GeotexError::config(
-                "grid.cells",
-                self.cells,
-                "expected 2..=512",
-            ));
+            return Err(GeotexError::config("grid.cells", self.cells, "in 2..=512"));
         }
         for (field, v) in [
             ("grid.smoothness", self.smoothness),
             ("grid.regularisation", self.regularisation),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(GeotexError::config(
-                    field,
-                    v,
-                    "expected a finite number > 0",
-                ));
+                return Err(GeotexError::config(field, v, "a finite number > 0"));
             }
         }
         if !(self.min_scale.is_finite() && self.min_scale > 0.0 && self.min_scale <= 1.0) {
             return Err(GeotexError::config(
                 "grid.min_scale",
                 self.min_scale,
-                "expected a number in (0, 1]",
+                "in (0, 1]",
             ));
         }
         Ok(())

@@ -101,21 +101,28 @@ impl Target {
 /// All settings of a resize; each part has its own documented defaults.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ResizeConfig {
+    /// Which of the three results. Default: `Texture`.
     pub method: Method,
+    /// Principal curvatures by integral invariants. Default: `CurvatureConfig::default()`.
     pub curvature: CurvatureConfig,
+    /// Mean-shift segmentation. Default: `SegmentationConfig::default()`.
     pub segmentation: SegmentationConfig,
+    /// Implicit fairing (extraction). Default: `FairingConfig::default()`.
     pub fairing: FairingConfig,
+    /// Protective grid (non-homogeneous resizing). Default: `GridConfig::default()`.
     pub grid: GridConfig,
+    /// Texture re-synthesis. Default: `SynthesisConfig::default()`.
     pub synthesis: SynthesisConfig,
     /// After resizing, texture edges longer than this many mean input edge lengths are
-    /// split. Default 1.5 (the longest edges of a regular input are about 1.2).
+    /// split. Default: `1.5` (the longest edges of a regular input are about 1.2).
     pub max_edge_ratio: f64,
     /// New vertices from splitting, at most, as a multiple of the input's vertices.
-    /// Default 4.
+    /// Default: `4.0`.
     pub max_growth: f64,
-    /// Fair input and output to report feature sizes and the base-shape error. Default true.
+    /// Fair input and output to report feature sizes and the base-shape error. Default: `true`.
     pub measure: bool,
     /// Seed of every random draw (segmentation samples, synthesis start).
+    /// Default: `0`.
     pub seed: u64,
 }
 
@@ -147,14 +154,14 @@ impl ResizeConfig {
             return Err(GeotexError::config(
                 "max_edge_ratio",
                 self.max_edge_ratio,
-                "expected a finite number >= 0.5",
+                "a finite number >= 0.5",
             ));
         }
         if !(self.max_growth.is_finite() && self.max_growth >= 0.0) {
             return Err(GeotexError::config(
                 "max_growth",
                 self.max_growth,
-                "expected a finite number >= 0",
+                "a finite number >= 0",
             ));
         }
         Ok(())

@@ -48,42 +48,43 @@ use crate::graph::VertexGraph;
 /// of the curvature ball radius `r` (so the defaults hold at any scale and resolution).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SegmentationConfig {
-    /// Radius of the neighbourhood of `E` and `D`, in `ℓ`. Default 4; 0 takes the 1-ring.
+    /// Radius of the neighbourhood of `E` and `D`, in `ℓ`. Default: `4.0`; 0 takes the 1-ring.
     pub stats_radius_in_edges: f64,
-    /// Spatial window `h_p`, in `ℓ`. Default 12.
+    /// Spatial window `h_p`, in `ℓ`. Default: `12.0`.
     pub window_position_in_edges: f64,
-    /// Window `h_q` on `E(κ)`, in `1/r`. Default 1 (about two thirds of the largest
+    /// Window `h_q` on `E(κ)`, in `1/r`. Default: `1.0` (about two thirds of the largest
     /// curvature the ball resolves, `1.6/r`: crests and troughs of one texture average to
     /// nearby modes).
     pub window_mean: f64,
-    /// Window `h_t` on the deviation `D(κ)^½`, in `1/r`. Default 0.2: the deviations of one
+    /// Window `h_t` on the deviation `D(κ)^½`, in `1/r`. Default: `0.2`: the deviations of one
     /// texture's vertices spread over about 0.15/r, a texture and smooth base lie 0.3/r or
     /// more apart.
     pub window_deviation: f64,
-    /// Mean-shift iterations per sample at most. Default 30.
+    /// Mean-shift iterations per sample at most. Default: `30`.
     pub max_iterations: usize,
     /// Mean-shift samples expected in one spatial window (a seeded random subset of the
-    /// vertices, or all of them when they are fewer). Default 80: the cost of an iteration
+    /// vertices, or all of them when they are fewer). Default: `80.0`: the cost of an iteration
     /// is samples x this, so it no longer grows with the square of the resolution.
     pub samples_per_window: f64,
     /// A cluster is texture when the mean over its vertices of `sqrt(D(κ1) + D(κ2)) · r`
-    /// reaches this. Default 0.1: curvature varying by a tenth of what the ball resolves;
+    /// reaches this. Default: `0.1`: curvature varying by a tenth of what the ball resolves;
     /// a smooth surface stays below 0.02 (the estimate's scatter), textures of the
     /// bundled models reach 0.2-0.6.
     pub roughness_threshold: f64,
     /// A vertex of a texture cluster is texture only if at least this fraction of the
     /// vertices around it (within the statistics radius) is convex and as much concave:
     /// geometric texture goes up and down, while the strip along a convex edge or a
-    /// concave crease is rough but curves one way. Default 0.05.
+    /// concave crease is rough but curves one way. Default: `0.05`.
     pub min_mixing: f64,
     /// Texture regions thinner than this (twice area over perimeter), in `ℓ`, are features
-    /// along edges, not texture. Default 16: the strip a sharp edge leaves is about
+    /// along edges, not texture. Default: `16.0`: the strip a sharp edge leaves is about
     /// `2 (r + stats radius) = 12 ℓ` wide.
     pub min_width_in_edges: f64,
     /// Texture regions (and base islands inside one) smaller than this area, in `ℓ²`, are
-    /// dropped (filled). Default 400 (a disc of about 11 ℓ radius).
+    /// dropped (filled). Default: `400.0` (a disc of about 11 ℓ radius).
     pub min_area_in_edges: f64,
     /// Seed of the sample subset.
+    /// Default: `0`.
     pub seed: u64,
 }
 
@@ -117,11 +118,7 @@ impl SegmentationConfig {
         ];
         for (field, value) in positive {
             if !(value.is_finite() && value > 0.0) {
-                return Err(GeotexError::config(
-                    field,
-                    value,
-                    "expected a finite number > 0",
-                ));
+                return Err(GeotexError::config(field, value, "a finite number > 0"));
             }
         }
         let non_negative = [
@@ -136,25 +133,21 @@ impl SegmentationConfig {
         ];
         for (field, value) in non_negative {
             if !(value.is_finite() && value >= 0.0) {
-                return Err(GeotexError::config(
-                    field,
-                    value,
-                    "expected a finite number >= 0",
-                ));
+                return Err(GeotexError::config(field, value, "a finite number >= 0"));
             }
         }
         if self.max_iterations == 0 {
             return Err(GeotexError::config(
                 "segmentation.max_iterations",
                 0,
-                "expected at least 1",
+                "at least 1",
             ));
         }
         if !(self.samples_per_window.is_finite() && self.samples_per_window >= 8.0) {
             return Err(GeotexError::config(
                 "segmentation.samples_per_window",
                 self.samples_per_window,
-                "expected a number >= 8",
+                "a number >= 8",
             ));
         }
         Ok(())

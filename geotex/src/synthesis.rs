@@ -51,28 +51,30 @@ const PCA_DIMENSIONS: usize = 8;
 /// Settings of the re-synthesis.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SynthesisConfig {
-    /// Half-width `m` of the `(2m+1)²` template. Default 4 (9 x 9, as Kwatra's smallest).
+    /// Half-width `m` of the `(2m+1)²` template. Default: `4` (9 x 9, as Kwatra's smallest).
     pub half_width: usize,
-    /// Template spacings from `d 2^(levels-1)` down to `d`. Default 3.
+    /// Template spacings from `d 2^(levels-1)` down to `d`. Default: `3`.
     pub levels: usize,
     /// EM iterations per level at most (a level stops early when fewer than 0.5% of the
-    /// matches change). Default 8: 24 in all, the paper's 25-30.
+    /// matches change). Default: `8`: 24 in all, the paper's 25-30.
     pub iterations: usize,
-    /// Nearest PCA neighbours re-ranked by the full distance. Default 4.
+    /// Nearest PCA neighbours re-ranked by the full distance. Default: `4`.
     pub candidates: usize,
-    /// Input neighbourhoods per level at most (a seeded subset beyond). Default 16,000.
+    /// Input neighbourhoods per level at most (a seeded subset beyond). Default: `16_000`.
     pub max_exemplars: usize,
     /// Width of the band along the region's border where the correspondence constraint
-    /// fades out, in `d`. Default 4 (half the finest template).
+    /// fades out, in `d`. Default: `4.0` (half the finest template).
     pub boundary_band: f64,
     /// Weight `μ` of the constraint on the border, relative to the mean weight a vertex
-    /// gets from the templates. Default 4.
+    /// gets from the templates. Default: `4.0`.
     pub constraint_weight: f64,
-    /// Weight of the damping towards the previous iterate, relative likewise. Default 0.05.
+    /// Weight of the damping towards the previous iterate, relative likewise. Default: `0.05`.
     pub damping: f64,
     /// Start from random input displacements (Kwatra); false starts from the stretched
-    /// input. Default true.
+    /// input. Default: `true`.
     pub random_start: bool,
+    /// Seed of the random start, the template shifts and the exemplar subsets (the
+    /// resize sets it from `ResizeConfig::seed`). Default: `0`.
     pub seed: u64,
 }
 
@@ -99,35 +101,27 @@ impl SynthesisConfig {
             return Err(GeotexError::config(
                 "synthesis.half_width",
                 self.half_width,
-                "expected 1..=16",
+                "in 1..=16",
             ));
         }
         if !(1..=6).contains(&self.levels) {
             return Err(GeotexError::config(
                 "synthesis.levels",
                 self.levels,
-                "expected 1..=6",
+                "in 1..=6",
             ));
         }
         if self.iterations == 0 {
-            return Err(GeotexError::config(
-                "synthesis.iterations",
-                0,
-                "expected at least 1",
-            ));
+            return Err(GeotexError::config("synthesis.iterations", 0, "at least 1"));
         }
         if self.candidates == 0 {
-            return Err(GeotexError::config(
-                "synthesis.candidates",
-                0,
-                "expected at least 1",
-            ));
+            return Err(GeotexError::config("synthesis.candidates", 0, "at least 1"));
         }
         if self.max_exemplars < 32 {
             return Err(GeotexError::config(
                 "synthesis.max_exemplars",
                 self.max_exemplars,
-                "expected at least 32",
+                "at least 32",
             ));
         }
         for (field, v) in [
@@ -136,11 +130,7 @@ impl SynthesisConfig {
             ("synthesis.damping", self.damping),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(GeotexError::config(
-                    field,
-                    v,
-                    "expected a finite number > 0",
-                ));
+                return Err(GeotexError::config(field, v, "a finite number > 0"));
             }
         }
         Ok(())
@@ -286,6 +276,16 @@ fn sample_template(
     scratch.heap.clear();
     let reach = (m as f64 * s * std::f64::consts::SQRT_2) * 1.2 + 2.0 * surface.mean_edge;
     let reach2 = reach * reach;
+    // The unfolding stays on the side of the surface the template looks at: a face turned
+    // more than about 80 degrees from the centre's normal is beyond the horizon of the
+    // tangent plane (on a closed, curved region — a blob — the coarse templates reach past
+    // it), and projecting it would both give grid points the far side's values and flood
+    // the whole reach of the mesh.
+    let faces_the_template = |f: u32| -> bool {
+        let [a, b, c] = surface.faces[f as usize].map(|v| surface.positions[v as usize]);
+        let normal = (b - a).cross(&(c - a));
+        normal.dot(&n) > 0.17 * normal.norm()
+    };
     let centroid_distance = |f: u32| -> f64 {
         let face = surface.faces[f as usize];
         let c = (surface.positions[face[0] as usize].coords
@@ -372,7 +372,7 @@ fn sample_template(
                 if scratch.seen[g as usize] != generation {
                     scratch.seen[g as usize] = generation;
                     let d = centroid_distance(g);
-                    if d <= reach2 {
+                    if d <= reach2 && faces_the_template(g) {
                         scratch.heap.push((Reverse(d.to_bits()), g));
                     }
                 }
