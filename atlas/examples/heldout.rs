@@ -1,7 +1,8 @@
 //! Held-out PSNR of fresco's texture and of the per-vertex colour baseline on a synthetic
 //! scene: `cargo run --release -p fresco-atlas --example heldout -- <shape> [detail] [exposure_jitter]`.
 //! Views 5 and 17 of 24 are held out; the texture is made from the other 22 with the
-//! ground-truth mesh and cameras.
+//! ground-truth mesh and cameras. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
+//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, NOGAIN, SAVE (renders and diff to /tmp).
 
 use std::path::Path;
 use std::time::Instant;
@@ -29,6 +30,12 @@ fn main() {
         exposure_jitter: jitter,
         width,
         height: width * 3 / 4,
+        views: var("VIEWS").map_or(SceneConfig::default().views, |v| v as u32),
+        distortion: match var("K1") {
+            Some(0.0) => fresco_datasets::Distortion::None,
+            Some(k) => fresco_datasets::Distortion::SimpleRadial { k },
+            None => SceneConfig::default().distortion,
+        },
         ..SceneConfig::default()
     };
     let t = Instant::now();
@@ -46,6 +53,12 @@ fn main() {
         quality_weight: var("QW").unwrap_or(TextureConfig::default().quality_weight),
         outlier_rejection: var("NOOUT").is_none(),
         exposure_gains: var("NOGAIN").is_none(),
+        bicubic: var("BILINEAR").is_none(),
+        mip_bias: var("MIPBIAS").unwrap_or(TextureConfig::default().mip_bias),
+        unwrap_stretch_iterations: var("SWEEPS")
+            .map_or(TextureConfig::default().unwrap_stretch_iterations, |v| {
+                v as u32
+            }),
         ..TextureConfig::default()
     };
     let inputs = TextureInputs {
@@ -55,15 +68,17 @@ fn main() {
         masks: None,
     };
     let t = Instant::now();
+    let cpu0 = cpu_seconds();
     let (model, _masks, summary) = texture(&inputs, &config, &NoProgress).unwrap();
     let secs = t.elapsed().as_secs_f64();
+    let cpu = cpu_seconds() - cpu0;
     let (vmesh, _) = vertex_colors(&inputs, &config, &NoProgress).unwrap();
     let baseline = TexturedModel {
         mesh: vmesh,
         textures: vec![],
     };
     println!(
-        "{} detail {detail}: {} faces, {} charts, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s {:?}",
+        "{} detail {detail}: {} faces, {} charts, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s wall, {cpu:.2} CPU-s, load {} {:?}",
         shape.name(),
         summary.faces,
         summary.charts,
@@ -72,6 +87,11 @@ fn main() {
         summary.target_texels_per_unit,
         summary.coverage,
         summary.outlier_texels,
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .split(' ')
+            .next()
+            .unwrap_or("?"),
         summary.seconds
     );
     for h in held {
@@ -121,5 +141,22 @@ fn main() {
         model.textures[0]
             .save(format!("/tmp/{}_atlas.png", shape.name()))
             .unwrap();
+    }
+}
+
+/// User + system CPU seconds of this process so far, all threads (Linux /proc; 0 elsewhere).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // Fields after the command name (which ends with ')'): utime and stime are the 12th and
+    // 13th, in clock ticks (100 per second on Linux).
+    let rest = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .map(|x| x.parse().unwrap_or(0.0))
+        .collect();
+    if f.len() > 12 {
+        (f[11] + f[12]) / 100.0
+    } else {
+        0.0
     }
 }

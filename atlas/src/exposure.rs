@@ -55,7 +55,7 @@ pub(crate) fn fit_gains(mesh: &Mesh, set: &ViewSet, tolerance: f64) -> Vec<[f32;
                 let cos = normal.dot(&to_cam) / to_cam.norm().max(1e-300);
                 let (mut sum, mut n) = ([0f32; 3], 0);
                 for p in &points {
-                    if let Some(c) = view.sample(p, cos, tolerance, SAMPLE_LEVEL) {
+                    if let Some(c) = view.sample(p, cos, tolerance, SAMPLE_LEVEL, false) {
                         for k in 0..3 {
                             sum[k] += c[k];
                         }

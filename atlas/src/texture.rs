@@ -274,7 +274,7 @@ fn fuse_one_chart(
         .collect();
     let texels: Vec<_> = candidates
         .iter()
-        .map(|&v| sample_view(mesh, normals, &grid, set, v, config.depth_tolerance))
+        .map(|&v| sample_view(mesh, normals, &grid, set, v, config))
         .filter(|t| t.valid.iter().any(|&ok| ok))
         .collect();
     let fused = crate::fusion::fuse_chart(&grid, texels, set, gains, config);
@@ -391,6 +391,7 @@ fn ensure_uvs(
     let needed = (total_area * target * target / 0.6).sqrt();
     let mut unwrap_cfg = fresco_param::UnwrapConfig {
         gutter: config.gutter,
+        stretch_iterations: config.unwrap_stretch_iterations,
         ..fresco_param::UnwrapConfig::default()
     };
     let size = ((needed.ceil() as u32).div_ceil(64) * 64).max(256);

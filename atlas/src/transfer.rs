@@ -185,7 +185,7 @@ pub(crate) fn sample_view(
     grid: &ChartGrid,
     set: &ViewSet,
     v: usize,
-    relative_tolerance: f64,
+    config: &crate::TextureConfig,
 ) -> ViewTexels {
     let view = &set.views[v];
     // Per local face: pyramid level and cosine of the viewing angle, or None if unseen.
@@ -199,7 +199,7 @@ pub(crate) fn sample_view(
             }
             let area_px = set.projected_area(f as usize, v) as f64;
             let texels = grid.uv_area[local].max(1e-9);
-            let level = (0.5 * (area_px / texels).log2()).max(0.0);
+            let level = (0.5 * (area_px / texels).log2() - config.mip_bias).max(0.0);
             let [a, b, c] = mesh.triangle(f as usize);
             let centroid = Point3::from((a.coords + b.coords + c.coords) / 3.0);
             let to_cam = view.centre - centroid;
@@ -219,7 +219,7 @@ pub(crate) fn sample_view(
             continue;
         };
         let p = surface_point(mesh, grid.faces[local as usize], &grid.bary[i]);
-        if let Some(c) = view.sample(&p, cos, relative_tolerance, level) {
+        if let Some(c) = view.sample(&p, cos, config.depth_tolerance, level, config.bicubic) {
             colour[i] = c;
             valid[i] = true;
         }

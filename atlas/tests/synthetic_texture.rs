@@ -227,11 +227,16 @@ fn a_highlight_painted_into_one_view_leaves_no_trace() {
     let mean = diffs.iter().sum::<i32>() as f64 / diffs.len() as f64;
     brighter.sort();
     let p99 = brighter[brighter.len() * 99 / 100];
-    // Within 3/255 on average (what differs is which clean view a texel took, at pattern
-    // edges), and no bright trace: the disc was more than 100/255 brighter.
+    let p1 = brighter[brighter.len() / 100];
+    let signed = brighter.iter().sum::<i32>() as f64 / brighter.len() as f64;
+    // No bright trace (the disc was more than 100/255 brighter): the brightening is no more
+    // skewed than the darkening (99th percentile within 3/255 of the 1st's magnitude, and
+    // under 20/255) and averages under 1/255. What differs otherwise is which clean view a
+    // texel took at the pattern's edges, symmetric, within 3.5/255 on average (measured with
+    // the bicubic lookup: 3.19; 2.43 with the bilinear one, whose blur hid view changes).
     assert!(
-        mean <= 3.0 && p99 <= 20,
-        "inside the highlight: mean difference {mean:.2}/255, 99th percentile of the brightening {p99}/255"
+        mean <= 3.5 && p99 <= 20 && p99 <= -p1 + 3 && signed <= 1.0,
+        "inside the highlight: mean difference {mean:.2}/255, brightening: mean {signed:.2}, 1st percentile {p1}, 99th {p99} (/255)"
     );
 }
 

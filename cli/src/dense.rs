@@ -54,6 +54,13 @@ pub struct DenseArgs {
     /// Do not write the false-colour PNG of each depth map.
     #[arg(long)]
     pub no_depth_pngs: bool,
+    /// The draft preset (DenseConfig::draft: images at most 320 px, fewer sweeps): a first
+    /// look in seconds.
+    #[arg(long, conflicts_with_all = ["max_image_size", "iterations"])]
+    pub draft: bool,
+    /// Skip the second PatchMatch pass (geometric consistency): faster, less complete.
+    #[arg(long)]
+    pub no_geometric: bool,
 }
 
 pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -102,14 +109,21 @@ pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
             .with_context(|| format!("adopting the poses of {}", poses.display()))?;
     }
     let mut config = DenseConfig {
-        max_image_size: args.max_image_size,
         exclude_images: args.exclude.clone(),
         seed: args.seed,
         depth_pngs: !args.no_depth_pngs,
-        ..DenseConfig::default()
+        geometric: !args.no_geometric,
+        ..if args.draft {
+            DenseConfig::draft()
+        } else {
+            DenseConfig::default()
+        }
     };
+    if !args.draft {
+        config.max_image_size = args.max_image_size;
+        config.patch_match.iterations = args.iterations;
+    }
     config.view_selection.max_sources = args.max_sources;
-    config.patch_match.iterations = args.iterations;
     config.fusion.min_views = args.min_views;
     let inputs = DenseInputs {
         reconstruction: &rec,

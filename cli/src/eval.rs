@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::{Args, Subcommand};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::reconstruct::{read_model_or_workspace, read_reference};
+use fresco_sfm::mapping::reconstruct::{read_model_or_workspace, read_reference};
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {

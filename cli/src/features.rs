@@ -1,20 +1,15 @@
 //! `fresco features <images dir> -o <ws>`: SIFT features of every PNG/JPEG photo in a folder
-//! (`fresco_sfm::extract`), one feature file per photo under `<ws>/features/`, and
+//! (`fresco_sfm::features::extract_photo_folder`), one feature file per photo under `<ws>/features/`, and
 //! `<ws>/images.json` with sizes and focal-length priors (K file, EXIF, or COLMAP's default,
 //! with the source named). Photos that cannot be used are skipped with a warning.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
-use fresco_core::Progress;
-use fresco_core::photo::load_photo;
-use fresco_sfm::extract::{MIN_IMAGE_SIDE, SiftConfig, extract_features};
-use fresco_sfm::feature_file::write_feature_file;
-use fresco_sfm::focal_prior::{FocalPrior, focal_from_exif, parse_exif, read_calibration_file};
-use fresco_sfm::workspace::{IMAGES_VERSION, ImageEntry, ImageList, features_path, write_images};
-use rayon::prelude::*;
+use fresco_sfm::features::dog::DetectorConfig;
+use fresco_sfm::features::{FeaturesConfig, SiftConfig, extract_photo_folder};
+use fresco_sfm::mapping::reconstruct::SfmConfig;
 use serde::Serialize;
 
 #[derive(Args, Debug)]
@@ -25,11 +20,18 @@ pub struct FeaturesArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Keep at most this many keypoints per photo, the strongest (0: all).
-    #[arg(long, default_value_t = 8192)]
+    #[arg(long, default_value_t = SiftConfig::default().max_features)]
     pub max_features: usize,
     /// Photos larger than this (longer side, pixels) are down-scaled for detection (0: never).
-    #[arg(long, default_value_t = 3200)]
+    #[arg(long, default_value_t = SiftConfig::default().max_image_size)]
     pub max_image_size: usize,
+    /// Keypoints wanted per megapixel: a photo with fewer is searched again at lower contrast
+    /// thresholds, down to --min-contrast-threshold (weakly textured objects; 0: never).
+    #[arg(long, default_value_t = SiftConfig::default().min_features_per_megapixel)]
+    pub min_features: usize,
+    /// The lowest contrast threshold adaptive detection goes down to.
+    #[arg(long, default_value_t = SiftConfig::default().min_contrast_threshold)]
+    pub min_contrast_threshold: f32,
     /// No rotation invariance: every keypoint gets orientation 0.
     #[arg(long)]
     pub upright: bool,
@@ -41,11 +43,11 @@ pub struct FeaturesArgs {
     pub no_upsample: bool,
     /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in
     /// [0, 1] (OpenCV's contrastThreshold; COLMAP's peak_threshold times 3).
-    #[arg(long, default_value_t = fresco_sfm::dog::DetectorConfig::default().contrast_threshold)]
+    #[arg(long, default_value_t = DetectorConfig::default().contrast_threshold)]
     pub contrast_threshold: f32,
     /// Camera model the mapper should use (COLMAP name, e.g. SIMPLE_RADIAL, PINHOLE, OPENCV);
     /// recorded in <ws>/features.json.
-    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    #[arg(long, default_value_t = SfmConfig::default().camera_model.name().to_string())]
     pub camera_model: String,
     /// Calibration matrix (3x3, K.txt) shared by all photos; overrides EXIF.
     #[arg(long)]
@@ -53,21 +55,12 @@ pub struct FeaturesArgs {
 }
 
 #[derive(Serialize)]
-struct ImageSummary {
-    name: String,
-    width: u32,
-    height: u32,
-    keypoints: usize,
-    focal_px: f64,
-    focal_source: fresco_sfm::focal_prior::FocalSource,
-    seconds: f64,
-}
-
-#[derive(Serialize)]
 struct RunRecord<'a> {
     camera_model: &'a str,
     max_features: usize,
     max_image_size: usize,
+    min_features: usize,
+    min_contrast_threshold: f32,
     upright: bool,
     root_sift: bool,
     upsample: bool,
@@ -75,111 +68,49 @@ struct RunRecord<'a> {
     focal_file: Option<&'a Path>,
 }
 
-/// The photos of `dir` (by extension), sorted by file name.
-fn list_photos(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let entries = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot list the photo folder {}", dir.display()))?;
-    let mut photos = Vec::new();
-    for entry in entries {
-        let path = entry
-            .with_context(|| format!("cannot list the photo folder {}", dir.display()))?
-            .path();
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_lowercase())
-            .unwrap_or_default();
-        if path.is_file() && matches!(ext.as_str(), "png" | "jpg" | "jpeg") {
-            photos.push(path);
-        }
+/// The settings the flags give.
+pub fn features_config(args: &FeaturesArgs) -> FeaturesConfig {
+    let mut sift = SiftConfig {
+        max_features: args.max_features,
+        max_image_size: args.max_image_size,
+        min_features_per_megapixel: args.min_features,
+        min_contrast_threshold: args.min_contrast_threshold,
+        upright: args.upright,
+        root_sift: args.rootsift,
+        ..Default::default()
+    };
+    sift.scale_space.upsample = !args.no_upsample;
+    sift.detector.contrast_threshold = args.contrast_threshold;
+    FeaturesConfig {
+        sift,
+        calibration_file: args.focal_file.clone(),
     }
-    photos.sort();
-    Ok(photos)
 }
 
 pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
-    let start = Instant::now();
     if fresco_core::CameraModel::from_name(&args.camera_model).is_err() {
         bail!(
             "unknown camera model `{}` (use a COLMAP name such as SIMPLE_RADIAL, PINHOLE, OPENCV)",
             args.camera_model
         );
     }
-    if !(args.contrast_threshold >= 0.0 && args.contrast_threshold.is_finite()) {
-        bail!(
-            "--contrast-threshold must be a non-negative number, got {}",
-            args.contrast_threshold
-        );
-    }
-    if !args.images.is_dir() {
-        bail!("{} is not a folder of photos", args.images.display());
-    }
-    let photos = list_photos(&args.images)?;
-    if photos.is_empty() {
-        bail!("no .png/.jpg/.jpeg photos in {}", args.images.display());
-    }
-    let feature_dir = args.output.join("features");
-    std::fs::create_dir_all(&feature_dir)
-        .with_context(|| format!("cannot create {}", feature_dir.display()))?;
-    let mut config = SiftConfig {
-        max_features: args.max_features,
-        max_image_size: args.max_image_size,
-        upright: args.upright,
-        root_sift: args.rootsift,
-        ..Default::default()
-    };
-    config.scale_space.upsample = !args.no_upsample;
-    config.detector.contrast_threshold = args.contrast_threshold;
-
-    let bars = crate::progress::Bars::new(ctx);
-    bars.begin("features", photos.len() as u64);
-    // One task per photo; extraction itself is parallel too, rayon balances the two levels.
-    let results: Vec<Result<(ImageEntry, ImageSummary), String>> = photos
-        .par_iter()
-        .map(|path| {
-            let r = process_photo(path, &args, &config);
-            bars.advance(1);
-            r.map_err(|e| format!("{e:#}"))
-        })
-        .collect();
-    bars.end();
-
-    let mut images = Vec::new();
-    let mut summaries = Vec::new();
-    let mut skipped = Vec::new();
-    for (path, result) in photos.iter().zip(results) {
-        match result {
-            Ok((mut entry, summary)) => {
-                entry.id = images.len() as u32 + 1;
-                images.push(entry);
-                summaries.push(summary);
-            }
-            Err(message) => {
-                tracing::warn!("skipped {}: {message}", path.display());
-                skipped.push(serde_json::json!({"path": path, "reason": message}));
-            }
+    for (flag, value) in [
+        ("--contrast-threshold", args.contrast_threshold),
+        ("--min-contrast-threshold", args.min_contrast_threshold),
+    ] {
+        if !(value >= 0.0 && value.is_finite()) {
+            bail!("{flag} must be a non-negative number, got {value}");
         }
     }
-    if images.is_empty() {
-        bail!(
-            "none of the {} photos in {} could be used",
-            photos.len(),
-            args.images.display()
-        );
-    }
-    if images.len() == 1 {
-        tracing::warn!("only one usable photo; matching needs at least two");
-    }
-    write_images(
-        &args.output,
-        &ImageList {
-            version: IMAGES_VERSION,
-            images,
-        },
-    )?;
+    let config = features_config(&args);
+    let bars = crate::progress::Bars::new(ctx);
+    let summary = extract_photo_folder(&args.images, &args.output, &config, &bars)?;
     let record = RunRecord {
         camera_model: &args.camera_model,
         max_features: args.max_features,
         max_image_size: args.max_image_size,
+        min_features: args.min_features,
+        min_contrast_threshold: args.min_contrast_threshold,
         upright: args.upright,
         root_sift: args.rootsift,
         upsample: !args.no_upsample,
@@ -191,11 +122,8 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
     std::fs::write(&tmp, serde_json::to_string_pretty(&record)?)
         .and_then(|_| std::fs::rename(&tmp, &record_path))
         .with_context(|| format!("cannot write {}", record_path.display()))?;
-
-    let total: usize = summaries.iter().map(|s| s.keypoints).sum();
-    let seconds = start.elapsed().as_secs_f64();
     let mut sources = std::collections::BTreeMap::<String, usize>::new();
-    for s in &summaries {
+    for s in &summary.photos {
         let key = serde_json::to_value(s.focal_source)?
             .as_str()
             .unwrap_or("?")
@@ -203,60 +131,16 @@ pub fn run(args: FeaturesArgs, ctx: &crate::Context) -> anyhow::Result<serde_jso
         *sources.entry(key).or_default() += 1;
     }
     Ok(serde_json::json!({
-        "workspace": args.output,
-        "images": summaries.len(),
-        "skipped": skipped.len(),
-        "keypoints": total,
-        "keypoints_per_second": total as f64 / seconds.max(1e-9),
-        "seconds": seconds,
+        "workspace": summary.workspace,
+        "images": summary.photos.len(),
+        "skipped": summary.skipped.len(),
+        "keypoints": summary.keypoints,
+        "keypoints_per_second": summary.keypoints as f64 / summary.seconds.max(1e-9),
+        "adapted_thresholds": summary.adapted,
+        "seconds": summary.seconds,
         "focal_sources": sources,
         "camera_model": args.camera_model,
-        "per_image": summaries,
-        "skipped_photos": skipped,
+        "per_image": summary.photos,
+        "skipped_photos": summary.skipped,
     }))
-}
-
-fn process_photo(
-    path: &Path,
-    args: &FeaturesArgs,
-    config: &SiftConfig,
-) -> anyhow::Result<(ImageEntry, ImageSummary)> {
-    let t0 = Instant::now();
-    let photo = load_photo(path)?;
-    photo.require_min_side(MIN_IMAGE_SIDE as u32)?;
-    let (w, h) = (photo.width(), photo.height());
-    let prior: FocalPrior = match &args.focal_file {
-        Some(k) => read_calibration_file(k, w, h)?,
-        None => focal_from_exif(&parse_exif(photo.exif.as_deref().unwrap_or(&[])), w, h),
-    };
-    let exif = parse_exif(photo.exif.as_deref().unwrap_or(&[]));
-    let features = extract_features(&photo.grey, config);
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let out = features_path(&args.output, &name);
-    write_feature_file(&out, &features)?;
-    let entry = ImageEntry {
-        id: 0,
-        name: name.clone(),
-        path: path.to_path_buf(),
-        width: w,
-        height: h,
-        num_keypoints: features.len(),
-        prior,
-        exif_orientation: photo.exif_orientation,
-        camera_make: exif.make.clone(),
-        camera_model: exif.model.clone(),
-    };
-    let summary = ImageSummary {
-        name,
-        width: w,
-        height: h,
-        keypoints: features.len(),
-        focal_px: prior.focal_x,
-        focal_source: prior.source,
-        seconds: t0.elapsed().as_secs_f64(),
-    };
-    Ok((entry, summary))
 }

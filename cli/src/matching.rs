@@ -7,12 +7,13 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
-use fresco_sfm::match_file::write_match_file;
-use fresco_sfm::matching::{MatchImage, MatchingConfig, PairSelection, match_pairs, select_pairs};
-use fresco_sfm::two_view::PairKind;
+use fresco_sfm::geometry::two_view::PairKind;
+use fresco_sfm::matching::{
+    MatchStageConfig, MatchStageOutput, MatchingConfig, PairSelection, match_workspace,
+};
 use fresco_sfm::verification::VerificationConfig;
-use fresco_sfm::view_graph::ViewGraph;
-use fresco_sfm::workspace::{matches_path, read_features, read_images};
+use fresco_sfm::verification::view_graph::ViewGraph;
+use fresco_sfm::workspace::matches_path;
 use serde_json::json;
 
 #[derive(Args, Debug)]
@@ -26,7 +27,7 @@ pub struct MatchArgs {
     #[arg(long)]
     pub retrieval: Option<usize>,
     /// Lowe's ratio test threshold.
-    #[arg(long, default_value_t = 0.8)]
+    #[arg(long, default_value_t = MatchingConfig::default().ratio)]
     pub ratio: f32,
     /// Keep matches that are not mutual nearest neighbours.
     #[arg(long)]
@@ -36,10 +37,10 @@ pub struct MatchArgs {
     #[arg(long)]
     pub guided: bool,
     /// RANSAC threshold in pixels (Sampson error for F and E, transfer error for H).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = VerificationConfig::default().max_error_px)]
     pub max_error: f64,
     /// Fewest inliers of a verified pair.
-    #[arg(long, default_value_t = 15)]
+    #[arg(long, default_value_t = VerificationConfig::default().min_inliers)]
     pub min_inliers: usize,
 }
 
@@ -52,69 +53,37 @@ pub fn run(args: MatchArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     if !(args.max_error > 0.0 && args.max_error.is_finite()) {
         bail!("--max-error must be positive, got {}", args.max_error);
     }
-    // The error names the file (images.json): the context does not name the folder again.
-    let list = read_images(ws).context("reading the workspace")?;
-    let features = list
-        .images
-        .iter()
-        .map(|im| read_features(ws, im))
-        .collect::<Result<Vec<_>, _>>()?;
-    if list.images.len() < 2 {
-        tracing::warn!(
-            "{} holds {} image(s): nothing to match",
-            ws.display(),
-            list.images.len()
-        );
-    }
-    for (im, f) in list.images.iter().zip(&features) {
-        if f.len() < args.min_inliers {
-            tracing::warn!(
-                "{} has {} keypoints (fewer than {}): it cannot be verified with any other image",
-                im.name,
-                f.len(),
-                args.min_inliers
-            );
-        }
-    }
     let selection = match (args.sequential, args.retrieval) {
         (Some(n), _) => PairSelection::Sequential { overlap: n },
         (None, Some(k)) => PairSelection::Retrieval { top_k: k },
         (None, None) => PairSelection::Exhaustive,
     };
-    let pairs = select_pairs(&features, selection);
-    let images: Vec<MatchImage> = list
-        .images
-        .iter()
-        .zip(&features)
-        .map(|(im, f)| MatchImage {
-            id: im.id,
-            features: f,
-            prior: &im.prior,
-        })
-        .collect();
-    let matching = MatchingConfig {
-        ratio: args.ratio,
-        mutual: !args.no_mutual,
-        guided: args.guided,
-    };
-    let verification = VerificationConfig {
-        max_error_px: args.max_error,
-        min_inliers: args.min_inliers,
-        ..Default::default()
+    let config = MatchStageConfig {
+        selection,
+        matching: MatchingConfig {
+            ratio: args.ratio,
+            mutual: !args.no_mutual,
+            guided: args.guided,
+        },
+        verification: VerificationConfig {
+            max_error_px: args.max_error,
+            min_inliers: args.min_inliers,
+            ..Default::default()
+        },
     };
     let bars = crate::progress::Bars::new(ctx);
-    let verified = match_pairs(&images, &pairs, &matching, &verification, &bars);
+    let MatchStageOutput {
+        images: list,
+        pairs: verified,
+    } = match_workspace(ws, &config, &bars)
+        // The error names the file at fault: the context does not name the folder again.
+        .context("matching the workspace")?;
     let out = matches_path(ws);
-    if let Some(dir) = out.parent() {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
     let kept: Vec<_> = verified
         .iter()
         .filter(|p| p.geometry.kind != PairKind::Degenerate)
         .cloned()
         .collect();
-    write_match_file(&out, &kept)?;
-
     let ids: Vec<u32> = list.images.iter().map(|im| im.id).collect();
     let graph = ViewGraph::new(&ids, &kept, args.min_inliers);
     let name_of = |id: u32| {

@@ -6,6 +6,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
+use fresco_sfm::features::SiftConfig;
+use fresco_sfm::mapping::reconstruct::SfmConfig;
+use fresco_sfm::matching::MatchingConfig;
+use fresco_sfm::verification::VerificationConfig;
 use serde_json::json;
 
 #[derive(Args, Debug)]
@@ -20,7 +24,7 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub focal_file: Option<PathBuf>,
     /// Camera model: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV.
-    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    #[arg(long, default_value_t = SfmConfig::default().camera_model.name().to_string())]
     pub camera_model: String,
     /// One camera (intrinsics) shared by all photos.
     #[arg(long)]
@@ -35,16 +39,22 @@ pub struct ReconstructArgs {
 
 pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
     let start = Instant::now();
+    // Every setting not given here is the library's default.
+    let sift = SiftConfig::default();
+    let matching = MatchingConfig::default();
+    let verification = VerificationConfig::default();
     let features = crate::features::run(
         crate::features::FeaturesArgs {
             images: args.images.clone(),
             output: args.output.clone(),
-            max_features: 8192,
-            max_image_size: 3200,
-            upright: false,
-            rootsift: false,
-            no_upsample: false,
-            contrast_threshold: fresco_sfm::dog::DetectorConfig::default().contrast_threshold,
+            max_features: sift.max_features,
+            max_image_size: sift.max_image_size,
+            min_features: sift.min_features_per_megapixel,
+            min_contrast_threshold: sift.min_contrast_threshold,
+            upright: sift.upright,
+            rootsift: sift.root_sift,
+            no_upsample: !sift.scale_space.upsample,
+            contrast_threshold: sift.detector.contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),
         },
@@ -56,11 +66,11 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             workspace: args.output.clone(),
             sequential: None,
             retrieval: None,
-            ratio: 0.8,
-            no_mutual: false,
-            guided: false,
-            max_error: 4.0,
-            min_inliers: 15,
+            ratio: matching.ratio,
+            no_mutual: !matching.mutual,
+            guided: matching.guided,
+            max_error: verification.max_error_px,
+            min_inliers: verification.min_inliers,
         },
         ctx,
     )?;
@@ -72,7 +82,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             camera_model: args.camera_model.clone(),
             single_camera: args.single_camera,
             per_image_camera: false,
-            init_min_inliers: 100,
+            init_min_inliers: SfmConfig::default().mapper.init_min_inliers,
             refine_principal_point: args.refine_principal_point,
         },
         ctx,

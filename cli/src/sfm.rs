@@ -1,13 +1,13 @@
 //! `fresco sfm <ws>`: incremental mapping and bundle adjustment on a workspace that
 //! `fresco features` and `fresco match` filled; writes `<ws>/sparse/0` (COLMAP text, further
-//! models `sparse/1`, ...) and `<ws>/sparse/points.ply`. See `fresco_sfm::reconstruct`.
+//! models `sparse/1`, ...) and `<ws>/sparse/points.ply`. See `fresco_sfm::mapping::reconstruct`.
 
 use std::path::PathBuf;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
 use fresco_core::CameraModel;
-use fresco_sfm::reconstruct::{CameraMode, SfmConfig, run_sfm};
+use fresco_sfm::mapping::reconstruct::{CameraMode, SfmConfig, run_sfm};
 
 #[derive(Args, Debug)]
 pub struct SfmArgs {
@@ -18,7 +18,7 @@ pub struct SfmArgs {
     #[arg(long)]
     pub masks: Option<PathBuf>,
     /// Camera model: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV.
-    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    #[arg(long, default_value_t = SfmConfig::default().camera_model.name().to_string())]
     pub camera_model: String,
     /// One camera (intrinsics) shared by all photos.
     #[arg(long, conflicts_with = "per_image_camera")]
@@ -27,7 +27,7 @@ pub struct SfmArgs {
     #[arg(long)]
     pub per_image_camera: bool,
     /// Fewest verified inliers of the initial pair.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = SfmConfig::default().mapper.init_min_inliers)]
     pub init_min_inliers: usize,
     /// Refine the principal point of uncalibrated cameras in bundle adjustment (COLMAP's
     /// `ba_refine_principal_point`). Off by default: only views converging on an object from

@@ -48,6 +48,24 @@ pub fn triangle_stretch(p: [Point3<f64>; 3], q: [Point2<f64>; 3]) -> Option<(f64
     Some((0.5 * (a + c), big, small))
 }
 
+/// The squared L2 stretch of one triangle alone (the first value of [`triangle_stretch`],
+/// bit for bit, without its singular values' square roots): the stretch optimisation's inner
+/// loop needs only this.
+pub fn triangle_l2_squared(p: [Point3<f64>; 3], q: [Point2<f64>; 3]) -> Option<f64> {
+    let a2 = 2.0 * signed_area(q);
+    if a2 == 0.0 || !a2.is_finite() {
+        return None;
+    }
+    let (s, t) = (q.map(|x| x.x), q.map(|x| x.y));
+    let ss =
+        (p[0].coords * (t[1] - t[2]) + p[1].coords * (t[2] - t[0]) + p[2].coords * (t[0] - t[1]))
+            / a2;
+    let st =
+        (p[0].coords * (s[2] - s[1]) + p[1].coords * (s[0] - s[2]) + p[2].coords * (s[1] - s[0]))
+            / a2;
+    Some(0.5 * (ss.dot(&ss) + st.dot(&st)))
+}
+
 /// L2 stretch of one chart, normalised by its own area ratio (1 = isometric up to scale).
 /// Infinite when a triangle of positive 3D area has zero UV area.
 pub fn chart_l2_stretch(positions: &[Point3<f64>], faces: &[[u32; 3]], uv: &[Point2<f64>]) -> f64 {
@@ -466,6 +484,19 @@ mod tests {
         let (_, big, small) =
             triangle_stretch(t3, [p(0.0, 0.0), p(0.5, 0.0), p(0.0, 1.0)]).unwrap();
         assert!((big - 2.0).abs() < 1e-12 && (small - 1.0).abs() < 1e-12);
+    }
+
+    /// The optimisation's fast path gives the same bits as the full triangle stretch.
+    #[test]
+    fn l2_squared_matches_triangle_stretch_bit_for_bit() {
+        let mut rng = fresco_core::Rng::new(7);
+        for _ in 0..1000 {
+            let mut r = || rng.uniform() * 2.0 - 1.0;
+            let t3 = [0; 3].map(|_| Point3::new(r(), r(), r()));
+            let q = [0; 3].map(|_| p(r(), r()));
+            let full = triangle_stretch(t3, q).map(|x| x.0.to_bits());
+            assert_eq!(triangle_l2_squared(t3, q).map(f64::to_bits), full);
+        }
     }
 
     #[test]

@@ -19,7 +19,7 @@
 use fresco_core::nalgebra::{Point2, Vector2};
 
 use crate::chart_mesh::ChartMesh;
-use crate::metrics::{signed_area, triangle_stretch};
+use crate::metrics::{signed_area, triangle_l2_squared};
 use crate::scaffold;
 
 /// Runs `iterations` sweeps over the interior vertices of the disc `chart` (boundary loop
@@ -153,7 +153,7 @@ fn sweep(
         let q = t.map(|w| uv[w as usize]);
         a_all += signed_area(q);
         if area3[f] > 0.0
-            && let Some((l2sq, _, _)) = triangle_stretch(t.map(|w| chart.positions[w as usize]), q)
+            && let Some(l2sq) = triangle_l2_squared(t.map(|w| chart.positions[w as usize]), q)
         {
             s_all += area3[f] * l2sq;
         }
@@ -174,7 +174,7 @@ fn sweep(
                 continue;
             }
             let p = t.map(|w| chart.positions[w as usize]);
-            s += area3[f as usize] * triangle_stretch(p, q)?.0;
+            s += area3[f as usize] * triangle_l2_squared(p, q)?;
         }
         for &f in guard.of(v) {
             let t = guard_faces[f as usize];

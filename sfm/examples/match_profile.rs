@@ -9,12 +9,12 @@
 
 use std::time::Instant;
 
-use fresco_sfm::essential::EssentialEstimator;
-use fresco_sfm::fundamental::FundamentalEstimator;
-use fresco_sfm::homography::HomographyEstimator;
+use fresco_sfm::geometry::essential::EssentialEstimator;
+use fresco_sfm::geometry::fundamental::FundamentalEstimator;
+use fresco_sfm::geometry::homography::HomographyEstimator;
+use fresco_sfm::geometry::ransac::{RansacConfig, ransac};
+use fresco_sfm::geometry::two_view::Correspondence;
 use fresco_sfm::matching::{MatchingConfig, match_descriptors};
-use fresco_sfm::ransac::{RansacConfig, ransac};
-use fresco_sfm::two_view::Correspondence;
 use fresco_sfm::verification::{VerificationConfig, normalise_pixel, verify_pair};
 use fresco_sfm::workspace::{read_features, read_images};
 use nalgebra::Point2;

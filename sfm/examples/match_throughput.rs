@@ -9,7 +9,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use fresco_sfm::feature_file::read_feature_file;
+use fresco_sfm::features::feature_file::read_feature_file;
 use fresco_sfm::matching::{DistanceKernel, MatchingConfig, match_descriptors_with};
 
 fn main() {

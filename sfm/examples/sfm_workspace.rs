@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 use fresco_core::{CameraModel, NoProgress};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::reconstruct::{
+use fresco_sfm::mapping::reconstruct::{
     CameraMode, SfmConfig, read_model_or_workspace, read_reference, run_sfm,
 };
 

@@ -11,12 +11,12 @@
 use std::time::Instant;
 
 use fresco_core::photo::load_photo;
-use fresco_sfm::descriptor::sift_descriptor;
-use fresco_sfm::dog::detect_extrema;
-use fresco_sfm::extract::{SiftConfig, extract_features};
-use fresco_sfm::feature_file::write_feature_file;
-use fresco_sfm::orientation::dominant_orientations;
-use fresco_sfm::scale_space::{build_scale_space, upsample2};
+use fresco_sfm::features::descriptor::sift_descriptor;
+use fresco_sfm::features::dog::detect_extrema;
+use fresco_sfm::features::extract::{SiftConfig, extract_features};
+use fresco_sfm::features::feature_file::write_feature_file;
+use fresco_sfm::features::orientation::dominant_orientations;
+use fresco_sfm::features::scale_space::{build_scale_space, upsample2};
 use rayon::prelude::*;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -42,7 +42,7 @@ fn main() {
     // OpenCV's defaults (bench/sift.sh compares with cv2.SIFT_create()).
     let config = SiftConfig {
         max_features: 0,
-        detector: fresco_sfm::dog::DetectorConfig::opencv(),
+        detector: fresco_sfm::features::dog::DetectorConfig::opencv(),
         ..Default::default()
     };
     for path in &photos {

@@ -17,11 +17,11 @@
 use std::path::PathBuf;
 
 use fresco_core::Rigid3;
-use fresco_sfm::essential::refine_relative_pose_robust;
-use fresco_sfm::extract::{SiftConfig, extract_features_from_file};
+use fresco_sfm::features::extract::{SiftConfig, extract_features_from_file};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
+use fresco_sfm::geometry::essential::refine_relative_pose_robust;
+use fresco_sfm::geometry::two_view::{Correspondence, PairKind};
 use fresco_sfm::matching::{MatchingConfig, match_and_verify_pair};
-use fresco_sfm::two_view::{Correspondence, PairKind};
 use fresco_sfm::verification::{VerificationConfig, normalise_pixel, verify_pair_scaled};
 use nalgebra::{Matrix3, Point2, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;

@@ -2,41 +2,11 @@
 //! bundle adjustment, triangulation and PnP: cameras on a spherical band looking at the
 //! origin, points in a ball, exact projections plus optional Gaussian noise and outliers.
 
+use fresco_core::Rng;
 use fresco_core::{
     CamFromWorld, Camera, CameraModel, Image, Point3D, Reconstruction, Rigid3, TrackElement,
 };
 use nalgebra::{Point2, Point3, Rotation3, UnitQuaternion, Vector3};
-
-/// A tiny deterministic generator (SplitMix64), so that problems are the same on every run.
-#[derive(Clone, Debug)]
-pub struct SplitMix(u64);
-
-impl SplitMix {
-    pub fn new(seed: u64) -> Self {
-        SplitMix(seed)
-    }
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Standard normal (Box–Muller).
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-    /// Uniform integer in 0..n.
-    pub fn below(&mut self, n: usize) -> usize {
-        ((self.uniform() * n as f64) as usize).min(n.saturating_sub(1))
-    }
-}
 
 /// What to generate.
 #[derive(Clone, Debug)]
@@ -99,7 +69,7 @@ pub fn look_at_origin(centre: Vector3<f64>) -> CamFromWorld {
 /// keypoints are their projections plus the configured noise and outliers. Returns it with
 /// the indices of the outlier observations (image id, keypoint index).
 pub fn synthetic_reconstruction(config: &SyntheticConfig) -> (Reconstruction, Vec<(u32, u32)>) {
-    let mut rng = SplitMix::new(config.seed);
+    let mut rng = Rng::new(config.seed);
     let mut rec = Reconstruction::default();
     let n_cam_models = if config.shared_camera {
         1
@@ -232,8 +202,8 @@ pub fn perturb(
     intrinsic_rel: f64,
     seed: u64,
 ) {
-    let mut rng = SplitMix::new(seed);
-    let gauss3 = |rng: &mut SplitMix| Vector3::new(rng.normal(), rng.normal(), rng.normal());
+    let mut rng = Rng::new(seed);
+    let gauss3 = |rng: &mut Rng| Vector3::new(rng.normal(), rng.normal(), rng.normal());
     for image in rec.images.values_mut() {
         let pose = &mut image.cam_from_world.0;
         let centre = -(pose.rotation.inverse() * pose.translation);

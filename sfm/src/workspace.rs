@@ -13,10 +13,10 @@ use std::path::{Path, PathBuf};
 use fresco_core::FormatError;
 use serde::{Deserialize, Serialize};
 
-use crate::feature_file::{Features, read_feature_file, write_atomically};
+use crate::features::feature_file::{Features, read_feature_file, write_atomically};
 use crate::focal_prior::FocalPrior;
-use crate::match_file::read_match_file;
-use crate::two_view::VerifiedPair;
+use crate::geometry::two_view::VerifiedPair;
+use crate::matching::match_file::read_match_file;
 
 /// Version of the `images.json` layout this code writes and reads.
 pub const IMAGES_VERSION: u32 = 1;
@@ -41,6 +41,10 @@ pub struct ImageEntry {
     pub exif_orientation: Option<u8>,
     pub camera_make: Option<String>,
     pub camera_model: Option<String>,
+    /// The SIFT contrast threshold the keypoints were detected at (adaptive detection lowers
+    /// it for weakly textured photos); absent in workspaces written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contrast_threshold: Option<f32>,
 }
 
 /// The contents of `images.json`.

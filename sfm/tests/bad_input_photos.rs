@@ -14,8 +14,8 @@ use std::path::Path;
 use fresco_core::raster::SampleMap;
 use fresco_core::{CamFromWorld, NoProgress, Rigid3, colmap};
 use fresco_datasets::{SceneConfig, Shape, build_scene, render_view};
-use fresco_sfm::extract::SiftConfig;
-use fresco_sfm::reconstruct::{SfmConfig, SfmError, run_sfm};
+use fresco_sfm::features::extract::SiftConfig;
+use fresco_sfm::mapping::reconstruct::{SfmConfig, SfmError, run_sfm};
 use nalgebra::{UnitQuaternion, Vector3};
 
 fn scene_config(shape: Shape, seed: u64) -> SceneConfig {

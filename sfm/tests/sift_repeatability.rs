@@ -22,9 +22,9 @@
 use std::path::{Path, PathBuf};
 
 use fresco_core::photo::{GreyImage, load_photo};
-use fresco_sfm::dog::DetectorConfig;
-use fresco_sfm::extract::{SiftConfig, extract_features};
-use fresco_sfm::feature_file::Features;
+use fresco_sfm::features::dog::DetectorConfig;
+use fresco_sfm::features::extract::{SiftConfig, extract_features};
+use fresco_sfm::features::feature_file::Features;
 use rayon::prelude::*;
 use serde::Deserialize;
 
@@ -115,6 +115,8 @@ fn warp_bilinear(
 fn detect(img: &[u8], w: usize, h: usize) -> (Vec<(f64, f64)>, Features) {
     let config = SiftConfig {
         max_features: 0,
+        // OpenCV's detector has one fixed threshold: no adaptive detection.
+        min_features_per_megapixel: 0,
         detector: DetectorConfig::opencv(),
         ..Default::default()
     };

@@ -7,13 +7,13 @@
 //! 12-24% off k), so the scenes keep their floor and walls, as real photos do. The properties: every view registered, rotation error < 0.2
 //! degrees after similarity alignment, distortion recovered within 10%.
 
+use fresco_core::Rng;
 use fresco_core::raster::{RasterConfig, SampleMap, visibility};
 use fresco_core::{Image, NoProgress, Point3D, Reconstruction, TrackElement};
 use fresco_datasets::{SceneConfig, Shape, build_scene};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::mapper::{MapperConfig, input_from_tracks, map};
-use fresco_sfm::reconstruct::intrinsics_standard_deviations;
-use fresco_sfm::synthetic::SplitMix;
+use fresco_sfm::mapping::mapper::{MapperConfig, input_from_tracks, map};
+use fresco_sfm::mapping::reconstruct::intrinsics_standard_deviations;
 
 /// Surface samples per scene.
 const SAMPLES: usize = 6000;
@@ -38,7 +38,7 @@ fn observed_scene(shape: Shape, noise_px: f64, seed: u64) -> Reconstruction {
     let cam = scene.camera.clone();
     let map = SampleMap::new(&cam, 1).expect("sample map");
     // Surface samples uniform by area (the temple's boxes have few vertices), face normals.
-    let mut rng = SplitMix::new(seed + 17);
+    let mut rng = Rng::new(seed + 17);
     let mut all = scene.mesh.clone();
     if let Some(b) = &scene.backdrop {
         all.append(b);

@@ -17,8 +17,10 @@ use std::path::PathBuf;
 
 use fresco_core::NoProgress;
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::extract::SiftConfig;
-use fresco_sfm::reconstruct::{SfmConfig, read_model_or_workspace, read_reference, run_sfm};
+use fresco_sfm::features::extract::SiftConfig;
+use fresco_sfm::mapping::reconstruct::{
+    SfmConfig, read_model_or_workspace, read_reference, run_sfm,
+};
 
 #[test]
 fn temple_sparse_ring_against_ground_truth_and_colmap() {
@@ -76,7 +78,7 @@ fn temple_sparse_ring_against_ground_truth_and_colmap() {
     // --refine-principal-point`): views all around the object determine it, and every bound
     // holds (measured 0.28 deg, 0.086%, principal point 6 px from the true one in x and y).
     let refined = SfmConfig {
-        mapper: fresco_sfm::mapper::MapperConfig {
+        mapper: fresco_sfm::mapping::mapper::MapperConfig {
             bundle: fresco_sfm::bundle::BundleConfig {
                 refine_principal_point: true,
                 ..SfmConfig::default().mapper.bundle
@@ -125,7 +127,7 @@ fn temple_known_calibration_no_worse_than_colmap() {
     common::prepare_workspace_with_calibration(&photos, ws.path(), &SiftConfig::default(), Some(k));
     let config = SfmConfig {
         camera_model: fresco_core::CameraModel::Pinhole,
-        camera_mode: fresco_sfm::reconstruct::CameraMode::Single,
+        camera_mode: fresco_sfm::mapping::reconstruct::CameraMode::Single,
         ..SfmConfig::default()
     };
     let summary = run_sfm(ws.path(), &config, &NoProgress).unwrap();

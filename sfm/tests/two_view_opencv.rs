@@ -8,11 +8,13 @@
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-use fresco_sfm::essential::{EssentialEstimator, pose_from_essential, refine_relative_pose};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
-use fresco_sfm::fundamental::FundamentalEstimator;
-use fresco_sfm::ransac::{RansacConfig, ransac};
-use fresco_sfm::two_view::{Correspondence, PairKind};
+use fresco_sfm::geometry::essential::{
+    EssentialEstimator, pose_from_essential, refine_relative_pose,
+};
+use fresco_sfm::geometry::fundamental::FundamentalEstimator;
+use fresco_sfm::geometry::ransac::{RansacConfig, ransac};
+use fresco_sfm::geometry::two_view::{Correspondence, PairKind};
 use fresco_sfm::verification::{VerificationConfig, normalise_pixel, verify_pair};
 use nalgebra::{Matrix3, Point2, Rotation3, UnitQuaternion};
 use serde_json::Value;

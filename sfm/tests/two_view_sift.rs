@@ -6,10 +6,10 @@
 use std::path::PathBuf;
 
 use fresco_core::middlebury::read_par;
-use fresco_sfm::extract::{SiftConfig, extract_features_from_file};
+use fresco_sfm::features::extract::{SiftConfig, extract_features_from_file};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
+use fresco_sfm::geometry::two_view::PairKind;
 use fresco_sfm::matching::{MatchingConfig, match_descriptors};
-use fresco_sfm::two_view::PairKind;
 use fresco_sfm::verification::{VerificationConfig, verify_pair_scaled};
 use nalgebra::Point2;
 

@@ -7,13 +7,13 @@ use std::path::Path;
 
 use fresco_core::{NoProgress, Reconstruction, colmap, ply};
 use fresco_sfm::evaluate::evaluate_poses;
-use fresco_sfm::feature_file::{Features, Keypoint, write_feature_file};
+use fresco_sfm::features::feature_file::{Features, Keypoint, write_feature_file};
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
-use fresco_sfm::mapper::{MapperConfig, input_from_tracks};
-use fresco_sfm::match_file::write_match_file;
-use fresco_sfm::reconstruct::{SfmConfig, SfmError, run_sfm};
+use fresco_sfm::geometry::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
+use fresco_sfm::mapping::mapper::{MapperConfig, input_from_tracks};
+use fresco_sfm::mapping::reconstruct::{SfmConfig, SfmError, run_sfm};
+use fresco_sfm::matching::match_file::write_match_file;
 use fresco_sfm::synthetic::{SyntheticConfig, synthetic_reconstruction};
-use fresco_sfm::two_view::{PairKind, TwoViewGeometry, VerifiedPair};
 use fresco_sfm::workspace::{
     IMAGES_VERSION, ImageEntry, ImageList, features_path, matches_path, write_images,
 };
@@ -55,6 +55,7 @@ fn write_workspace(ws: &Path, scenes: &[&Reconstruction]) {
                 exif_orientation: None,
                 camera_make: None,
                 camera_model: None,
+                contrast_threshold: None,
             });
             let features = Features {
                 width: cam.width,
@@ -149,6 +150,10 @@ fn workspace_to_model_and_coloured_points() {
     assert!(e.max_rotation_deg < 0.2, "{e:?}");
     // The focal prior was 20% off; BA finds the true 600 px within 1%.
     assert!((summary.focal_px[&1] - 600.0).abs() < 6.0, "{summary:?}");
+    // The summary says where the focal length started: the photos' prior and its source.
+    let prior = &summary.focal_priors[&1];
+    assert_eq!(prior.source, FocalSource::Default, "{summary:?}");
+    assert!((prior.focal_px - 720.0).abs() < 1e-9, "{summary:?}");
     let cloud = ply::read_mesh(ws.join("sparse").join("points.ply")).unwrap();
     assert_eq!(cloud.positions.len(), model.points3d.len());
     let colours = cloud.colors.expect("points.ply has colours");
@@ -241,7 +246,7 @@ fn bad_workspaces_are_reported() {
     assert!(!ws.join("sparse").join("0").exists());
     // A single camera for photos of different sizes is refused.
     let single = SfmConfig {
-        camera_mode: fresco_sfm::reconstruct::CameraMode::Single,
+        camera_mode: fresco_sfm::mapping::reconstruct::CameraMode::Single,
         ..config()
     };
     let mut list = fresco_sfm::workspace::read_images(ws).unwrap();

@@ -1,7 +1,9 @@
 //! Runs the dense stage on a synthetic dataset written by `fresco synth` and judges the fused
 //! cloud against its ground-truth mesh (the figures of issue 13).
 //!
-//! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]`
+//! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
+//! [--eval-only] [key=value ...]` (keys: max_image_size, geometric, scales, iterations,
+//! fine_iterations, geometric_iterations, adaptive_views, top_k, max_sources, min_views)
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -26,9 +28,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         images: &images,
         masks: masks.then_some(mask_dir.as_path()),
     };
+    let mut config = DenseConfig::default();
+    for kv in args[3..].iter().filter(|a| !a.starts_with("--")) {
+        let (k, v) = kv.split_once('=').ok_or("key=value")?;
+        let pm = &mut config.patch_match;
+        match k {
+            "max_image_size" => config.max_image_size = v.parse()?,
+            "geometric" => config.geometric = v.parse()?,
+            "scales" => pm.scales = v.parse()?,
+            "iterations" => pm.iterations = v.parse()?,
+            "fine_iterations" => pm.fine_iterations = v.parse()?,
+            "geometric_iterations" => pm.geometric_iterations = v.parse()?,
+            "adaptive_views" => pm.adaptive_views = v.parse()?,
+            "top_k" => pm.top_k = v.parse()?,
+            "max_sources" => config.view_selection.max_sources = v.parse()?,
+            "min_views" => config.fusion.min_views = v.parse()?,
+            _ => return Err(format!("unknown key {k}").into()),
+        }
+    }
     let t = Instant::now();
     if !eval_only {
-        let summary = densify(&inputs, &DenseConfig::default(), &out, &NoProgress)?;
+        let summary = densify(&inputs, &config, &out, &NoProgress)?;
         let seconds = t.elapsed().as_secs_f64();
         for v in &summary.views {
             println!(
@@ -37,9 +57,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
         println!(
-            "undistort {:.2}s patch match {:.2}s fusion {:.2}s total {seconds:.2}s, {} points",
+            "undistort {:.2}s patch match {:.2}s geometric {:.2}s fusion {:.2}s total {seconds:.2}s, {} points",
             summary.seconds_undistort,
             summary.seconds_patch_match,
+            summary.seconds_geometric,
             summary.seconds_fusion,
             summary.fusion.points
         );

@@ -31,7 +31,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "sigma_color" => cfg.sigma_color = v.parse()?,
             "sigma_spatial" => cfg.sigma_spatial = v.parse()?,
             "iterations" => cfg.iterations = v.parse()?,
+            "fine_iterations" => cfg.fine_iterations = v.parse()?,
+            "scales" => cfg.scales = v.parse()?,
             "top_k" => cfg.top_k = v.parse()?,
+            "adaptive_views" => cfg.adaptive_views = v.parse()?,
             "max_cost" => cfg.max_cost = v.parse()?,
             "max_sources" => vs.max_sources = v.parse()?,
             _ => return Err(format!("unknown key {k}").into()),
@@ -72,10 +75,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 image: img,
                 k: Intrinsics::of(&views[s].camera),
                 src_from_ref: views[s].cam_from_world.0 * view.cam_from_world.0.inverse(),
+                depth: None,
             })
             .collect(),
         depth_range: (range.0 as f32, range.1 as f32),
         mask: None,
+        prior: None,
     };
     let t = Instant::now();
     let map = patch_match(&problem, &cfg, 1);

@@ -279,6 +279,7 @@ pub fn import_colmap(model: &Path, photos: &Path, ws: &Path) -> anyhow::Result<s
             exif_orientation: None,
             camera_make: None,
             camera_model: None,
+            contrast_threshold: None,
         });
     }
     write_images(

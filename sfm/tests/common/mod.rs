@@ -4,12 +4,12 @@
 use std::path::Path;
 
 use fresco_core::NoProgress;
-use fresco_sfm::extract::{SiftConfig, extract_features_from_file};
-use fresco_sfm::feature_file::write_feature_file;
+use fresco_sfm::features::extract::{SiftConfig, extract_features_from_file};
+use fresco_sfm::features::feature_file::write_feature_file;
 use fresco_sfm::focal_prior::{FocalPrior, FocalSource};
-use fresco_sfm::match_file::write_match_file;
+use fresco_sfm::geometry::two_view::PairKind;
+use fresco_sfm::matching::match_file::write_match_file;
 use fresco_sfm::matching::{MatchImage, MatchingConfig, PairSelection, match_pairs, select_pairs};
-use fresco_sfm::two_view::PairKind;
 use fresco_sfm::verification::VerificationConfig;
 use fresco_sfm::workspace::{
     IMAGES_VERSION, ImageEntry, ImageList, features_path, matches_path, write_images,
@@ -74,6 +74,7 @@ pub fn prepare_workspace_with_calibration(
                 exif_orientation: None,
                 camera_make: None,
                 camera_model: None,
+                contrast_threshold: None,
             }
         })
         .collect();

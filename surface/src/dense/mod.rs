@@ -9,6 +9,8 @@
 //! 3. `patch_match.rs`: a depth, normal and cost per pixel of each view, one view at a time,
 //!    written to `<out>/stereo/{depth,normal,cost}_maps/<name>.photometric.bin` (COLMAP's
 //!    format, `depth_map_file.rs`) with a false-colour PNG in `<out>/stereo/depth_pngs/`;
+//!    then a second pass with the geometric-consistency term against the sources' maps
+//!    (`geometric_consistency.rs`) into `<name>.geometric.bin`;
 //! 4. `fusion.rs`: the depth maps that agree across views become `<out>/fused.ply` and
 //!    `<out>/fused.ply.vis`, streamed over the views.
 //!
@@ -19,6 +21,7 @@
 pub mod depth_map_file;
 pub mod evaluate;
 pub mod fusion;
+pub mod geometric_consistency;
 pub mod patch_match;
 pub mod reference_poses;
 pub mod undistort;
@@ -82,6 +85,9 @@ pub struct DenseConfig {
     pub view_selection: ViewSelectionConfig,
     pub patch_match: PatchMatchConfig,
     pub fusion: FusionConfig,
+    /// Run the second PatchMatch pass with the geometric-consistency term and fuse its maps.
+    /// Default true.
+    pub geometric: bool,
     /// Images (by name) left out of the dense stage, e.g. held out for evaluation.
     pub exclude_images: Vec<String>,
     /// Seed of every random draw. Default 0.
@@ -97,6 +103,7 @@ impl Default for DenseConfig {
             view_selection: ViewSelectionConfig::default(),
             patch_match: PatchMatchConfig::default(),
             fusion: FusionConfig::default(),
+            geometric: true,
             exclude_images: Vec::new(),
             seed: 0,
             depth_pngs: true,
@@ -105,6 +112,23 @@ impl Default for DenseConfig {
 }
 
 impl DenseConfig {
+    /// The `draft` preset (`fresco run --quality draft`): a first look in well under a
+    /// minute on a 16-view, 640x480 set. Images at most 320 pixels (a quarter of the pixels
+    /// of 640x480), two scales with 4 coarse and 1 fine sweeps, one geometric sweep; the
+    /// rest as [`DenseConfig::default`].
+    pub fn draft() -> DenseConfig {
+        let mut config = DenseConfig {
+            max_image_size: 320,
+            ..DenseConfig::default()
+        };
+        let pm = &mut config.patch_match;
+        pm.scales = 2;
+        pm.iterations = 4;
+        pm.fine_iterations = 1;
+        pm.geometric_iterations = 1;
+        config
+    }
+
     /// Checks every field; the error names the first bad one.
     pub fn check(&self) -> Result<(), DenseError> {
         let wrap = |(field, message): (&'static str, String)| DenseError::Config { field, message };
@@ -168,8 +192,10 @@ pub struct ViewSummary {
     pub height: u32,
     pub sources: Vec<String>,
     pub depth_range: Option<(f64, f64)>,
-    /// Fraction of the view's pixels with a depth.
+    /// Fraction of the view's pixels with a depth after the photometric pass.
     pub valid_fraction: f64,
+    /// The same after the geometric pass.
+    pub geometric_valid_fraction: f64,
     pub seconds: f64,
     /// Why the view got no depth map, if it did not.
     pub skipped: Option<String>,
@@ -184,6 +210,7 @@ pub struct DenseSummary {
     pub seconds_undistort: f64,
     pub seconds_view_selection: f64,
     pub seconds_patch_match: f64,
+    pub seconds_geometric: f64,
     pub seconds_fusion: f64,
     pub seconds_total: f64,
     pub config: Option<DenseConfig>,
@@ -274,14 +301,42 @@ pub fn densify(
 
     let t = Instant::now();
     let has_masks = inputs.masks.is_some();
-    summary.views = depth_maps(&views, &choices, has_masks, config, &layout, progress)?;
+    summary.views = depth_maps(
+        &views,
+        &choices,
+        has_masks,
+        Pass::Photometric,
+        config,
+        &layout,
+        progress,
+    )?;
     summary.skipped_views = summary.views.iter().filter(|v| v.skipped.is_some()).count();
     summary.seconds_patch_match = t.elapsed().as_secs_f64();
+    let fused_pass = if config.geometric {
+        let t = Instant::now();
+        let geometric = depth_maps(
+            &views,
+            &choices,
+            has_masks,
+            Pass::Geometric,
+            config,
+            &layout,
+            progress,
+        )?;
+        for (v, g) in summary.views.iter_mut().zip(geometric) {
+            v.geometric_valid_fraction = g.valid_fraction;
+            v.seconds += g.seconds;
+        }
+        summary.seconds_geometric = t.elapsed().as_secs_f64();
+        Pass::Geometric
+    } else {
+        Pass::Photometric
+    };
 
     let t = Instant::now();
     let neighbours: Vec<Vec<usize>> = choices.iter().map(|c| c.sources.clone()).collect();
     let load = |v: usize| -> Result<Option<fusion::FusionView>, DenseError> {
-        let (d, n, c) = layout.maps(&views[v].name, "photometric");
+        let (d, n, c) = layout.maps(&views[v].name, fused_pass.name());
         if !d.is_file() {
             return Ok(None);
         }
@@ -579,11 +634,29 @@ impl ImageCache<'_> {
     }
 }
 
-/// Step 3: a depth map per view, written to disk.
+/// The two PatchMatch passes: photometric, then with the geometric-consistency term against
+/// the sources' photometric maps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    Photometric,
+    Geometric,
+}
+
+impl Pass {
+    fn name(self) -> &'static str {
+        match self {
+            Pass::Photometric => "photometric",
+            Pass::Geometric => "geometric",
+        }
+    }
+}
+
+/// Step 3: a depth map per view and pass, written to disk.
 fn depth_maps(
     views: &[DenseView],
     choices: &[view_selection::ViewChoice],
     has_masks: bool,
+    pass: Pass,
     config: &DenseConfig,
     layout: &DenseLayout,
     progress: &dyn Progress,
@@ -593,8 +666,9 @@ fn depth_maps(
         views,
         grey: BTreeMap::new(),
     };
+    let mut maps: BTreeMap<usize, Arc<DepthMap>> = BTreeMap::new();
     let mut out = Vec::with_capacity(views.len());
-    progress.begin("patch match", views.len() as u64);
+    progress.begin(&format!("{} depth", pass.name()), views.len() as u64);
     for (r, view) in views.iter().enumerate() {
         let t = Instant::now();
         let choice = &choices[r];
@@ -610,37 +684,46 @@ fn depth_maps(
             depth_range: choice.depth_range,
             ..Default::default()
         };
-        let (d, n, c) = layout.maps(&view.name, "photometric");
+        let (d, n, c) = layout.maps(&view.name, pass.name());
         // A stale map of an earlier run must not be fused.
         for p in [&d, &n, &c] {
             if p.is_file() {
                 std::fs::remove_file(p).map_err(|e| FormatError::io(p, e))?;
             }
         }
-        let Some(range) = choice.depth_range else {
-            vs.skipped = Some("no sparse point lies in front of it".into());
-            tracing::warn!(
-                "{}: skipped: no sparse point lies in front of it",
-                view.name
-            );
-            out.push(vs);
-            progress.advance(1);
-            continue;
+        let skip = if choice.depth_range.is_none() {
+            Some("no sparse point lies in front of it")
+        } else if choice.sources.is_empty() {
+            Some("no source view shares enough sparse points with it")
+        } else {
+            None
         };
-        if choice.sources.is_empty() {
-            vs.skipped = Some("no source view shares enough sparse points with it".into());
-            tracing::warn!(
-                "{}: skipped: no source view shares enough sparse points with it",
-                view.name
-            );
+        if let Some(reason) = skip {
+            if pass == Pass::Photometric {
+                tracing::warn!("{}: skipped: {reason}", view.name);
+            }
+            vs.skipped = Some(reason.into());
             out.push(vs);
             progress.advance(1);
             continue;
         }
+        let range = choice.depth_range.expect("checked above");
         let needed: Vec<usize> = std::iter::once(r)
             .chain(choice.sources.iter().copied())
             .collect();
         cache.prepare(&needed)?;
+        if pass == Pass::Geometric {
+            maps.retain(|k, _| needed.contains(k));
+            for &v in &needed {
+                if maps.contains_key(&v) {
+                    continue;
+                }
+                let (pd, pn, pc) = layout.maps(&views[v].name, Pass::Photometric.name());
+                if pd.is_file() {
+                    maps.insert(v, Arc::new(depth_map_file::read_depth_map(&pd, &pn, &pc)?));
+                }
+            }
+        }
         let mask = if has_masks {
             let path = layout.mask(&view.name);
             Some(
@@ -666,10 +749,12 @@ fn depth_maps(
                     image: &cache.grey[&s],
                     k: Intrinsics::of(&views[s].camera),
                     src_from_ref: views[s].cam_from_world.0 * ref_pose.inverse(),
+                    depth: maps.get(&s).map(|m| m.as_ref()),
                 })
                 .collect(),
             depth_range: (range.0 as f32, range.1 as f32),
             mask: mask.as_deref(),
+            prior: maps.get(&r).map(|m| m.as_ref()),
         };
         let seed = Rng::for_item(config.seed, view.image_id as u64).next_u64();
         let map = patch_match(&problem, &config.patch_match, seed);
@@ -678,7 +763,7 @@ fn depth_maps(
         }
         depth_map_file::write_depth_map(&d, &n, &c, &map)?;
         if config.depth_pngs {
-            let png = layout.depth_png(&view.name, "photometric");
+            let png = layout.depth_png(&view.name, pass.name());
             create_parent(&png)?;
             write_rgb_png(&png, &depth_map_file::depth_png(&map))?;
         }

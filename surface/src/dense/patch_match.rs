@@ -47,6 +47,8 @@ use fresco_core::{Camera, Rigid3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::geometric_consistency::DepthCheck;
+
 /// Most source views a reference view can use.
 pub const MAX_SOURCES: usize = 16;
 /// Cost of an impossible or unmatched hypothesis (`1 - NCC` lies in [0, 2]).
@@ -65,16 +67,36 @@ pub struct PatchMatchConfig {
     pub sigma_color: f32,
     /// Distance scale of the bilateral weights, pixels. Default 12.
     pub sigma_spatial: f32,
-    /// Propagation + refinement sweeps (both colours). Default 6.
+    /// Scales of the coarse-to-fine pyramid (1: full resolution only). Each coarser scale
+    /// halves the image; scales whose image would be smaller than 96 pixels on a side are
+    /// dropped. Default 3.
+    pub scales: usize,
+    /// Propagation + refinement sweeps (both colours) at the coarsest scale. Default 6.
     pub iterations: usize,
-    /// Sources whose costs are averaged per hypothesis (the best ones). Default 2.
+    /// Sweeps at each finer scale, which starts from the coarser scale's planes. Default 2.
+    pub fine_iterations: usize,
+    /// Sources whose costs are averaged per hypothesis (the best ones), where no adaptive
+    /// view weights are known. Default 2.
     pub top_k: usize,
+    /// Weigh the sources per pixel by ACMH's multi-hypothesis view selection (see
+    /// `view_weights`) instead of averaging the `top_k` best. Default true.
+    pub adaptive_views: bool,
     /// Pixels whose window's weighted standard deviation is below this (grey levels in
     /// [0, 1]) carry no texture and get no depth. Default 0.002 (half a grey level of 8-bit
     /// images, above their quantisation noise).
     pub min_ref_std: f32,
-    /// Pixels whose final cost is above this get no depth (`1 - NCC`). Default 0.5.
+    /// Pixels whose final cost is above this get no depth (`1 - NCC`; in the geometric
+    /// pass, plus `geometric_weight`, i.e. a pixel of mean reprojection error). Default 0.5.
     pub max_cost: f32,
+    /// Weight of the forward-backward reprojection error (pixels) added to each source's
+    /// cost in the geometric pass (`geometric_consistency.rs`). Default 0.2 (ACMM's 0.2;
+    /// COLMAP's regulariser is 0.3).
+    pub geometric_weight: f32,
+    /// Reprojection errors are clamped at this many pixels. Default 3 (COLMAP's).
+    pub geometric_max_px: f32,
+    /// Sweeps of the geometric pass, at full resolution from the first pass's planes.
+    /// Default 2.
+    pub geometric_iterations: usize,
 }
 
 impl Default for PatchMatchConfig {
@@ -84,10 +106,16 @@ impl Default for PatchMatchConfig {
             window_step: 2,
             sigma_color: 0.05,
             sigma_spatial: 12.0,
+            scales: 3,
             iterations: 6,
+            fine_iterations: 2,
             top_k: 2,
+            adaptive_views: true,
             min_ref_std: 0.002,
             max_cost: 0.5,
+            geometric_weight: 0.2,
+            geometric_max_px: 3.0,
+            geometric_iterations: 2,
         }
     }
 }
@@ -125,6 +153,9 @@ impl PatchMatchConfig {
         if self.iterations == 0 {
             return Err(("iterations", "at least one iteration is needed".into()));
         }
+        if self.scales == 0 || self.scales > 6 {
+            return Err(("scales", format!("{} is outside 1..=6", self.scales)));
+        }
         if self.top_k == 0 || self.top_k > MAX_SOURCES {
             return Err((
                 "top_k",
@@ -136,6 +167,14 @@ impl PatchMatchConfig {
                 "min_ref_std",
                 format!("{} is not a non-negative number", self.min_ref_std),
             ));
+        }
+        for (name, v) in [
+            ("geometric_weight", self.geometric_weight),
+            ("geometric_max_px", self.geometric_max_px),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((name, format!("{v} is not a non-negative number")));
+            }
         }
         if !(self.max_cost.is_finite() && self.max_cost > 0.0 && self.max_cost <= MAX_COST) {
             return Err((
@@ -215,6 +254,8 @@ pub struct Source<'a> {
     pub image: &'a GreyImage,
     pub k: Intrinsics,
     pub src_from_ref: Rigid3,
+    /// The source's first-pass depth map, for the geometric pass (same size as `image`).
+    pub depth: Option<&'a DepthMap>,
 }
 
 /// Everything PatchMatch needs for one reference view at one scale.
@@ -226,6 +267,9 @@ pub struct Problem<'a> {
     pub depth_range: (f32, f32),
     /// Pixels to reconstruct (row-major, non-zero = yes); `None`: all.
     pub mask: Option<&'a [u8]>,
+    /// The first pass's depth map of this view: when given, this is the geometric pass
+    /// (full resolution only, starting from these planes).
+    pub prior: Option<&'a DepthMap>,
 }
 
 /// A depth map with normals and costs, row-major. Depth 0 marks pixels without depth.
@@ -365,6 +409,8 @@ struct Solver<'a> {
     problem: &'a Problem<'a>,
     cfg: &'a PatchMatchConfig,
     sources: Vec<SourceGeometry<'a>>,
+    /// Per source, its depth map for the geometric term (geometric pass only).
+    checks: Vec<Option<DepthCheck<'a>>>,
     /// Window sample offsets along one axis.
     offsets: Vec<i32>,
     /// Spatial part of the bilateral weights, per window sample.
@@ -414,10 +460,19 @@ impl<'a> Solver<'a> {
                 spatial.push((-dist / cfg.sigma_spatial).exp());
             }
         }
+        let checks = problem
+            .sources
+            .iter()
+            .map(|s| {
+                s.depth
+                    .map(|d| DepthCheck::new(d, &s.k, &s.src_from_ref, &problem.k))
+            })
+            .collect();
         let mut solver = Solver {
             problem,
             cfg,
             sources,
+            checks,
             offsets,
             spatial,
             regions: regions(),
@@ -585,13 +640,26 @@ impl<'a> Solver<'a> {
         (1.0 - sa / var.sqrt()).clamp(0.0, MAX_COST)
     }
 
-    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`).
-    fn cost(&self, x: usize, y: usize, depth: f32, normal: &[f32; 3], win: &Window) -> f32 {
+    /// The cost of hypothesis (`depth`, `normal`) at (`x`, `y`) against every source
+    /// (photometric, plus the geometric term in the geometric pass); `MAX_COST` beyond the
+    /// sources and, when `weights` are given, for the sources of weight 0 (which a weighted
+    /// mean ignores: not evaluating them saves most of the refinement's work once ACMH's
+    /// selection has settled on a few views).
+    fn source_costs(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+        weights: Option<&[f32; MAX_SOURCES]>,
+    ) -> [f32; MAX_SOURCES] {
+        let mut costs = [MAX_COST; MAX_SOURCES];
         let k = &self.problem.k;
         let ray = k.ray(x as f32, y as f32);
         let delta = -depth * dot(normal, &ray);
         if delta.is_nan() || delta <= 0.0 {
-            return MAX_COST;
+            return costs;
         }
         // m = K^-T n / delta.
         let fx = k.fx as f32;
@@ -601,9 +669,17 @@ impl<'a> Solver<'a> {
             normal[1] / fy / delta,
             (normal[2] - normal[0] * k.cx as f32 / fx - normal[1] * k.cy as f32 / fy) / delta,
         ];
-        let mut costs = [MAX_COST; MAX_SOURCES];
-        let n = self.sources.len();
-        for (c, src) in costs.iter_mut().zip(&self.sources) {
+        let point = [depth * ray[0], depth * ray[1], depth];
+        let (weight, max_px) = (self.cfg.geometric_weight, self.cfg.geometric_max_px);
+        for (j, ((c, src), check)) in costs
+            .iter_mut()
+            .zip(&self.sources)
+            .zip(&self.checks)
+            .enumerate()
+        {
+            if weights.is_some_and(|w| w[j] == 0.0) {
+                continue;
+            }
             let mut h = src.a;
             for i in 0..3 {
                 for j in 0..3 {
@@ -611,8 +687,49 @@ impl<'a> Solver<'a> {
                 }
             }
             *c = self.source_cost(src, &h, x, y, win);
+            if let Some(check) = check {
+                let error = check
+                    .error(&point, x as f32, y as f32)
+                    .map_or(max_px, |e| e.min(max_px));
+                *c += weight * error;
+            }
         }
-        aggregate(&mut costs[..n], self.cfg.top_k)
+        costs
+    }
+
+    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`): the mean of the
+    /// `top_k` best sources.
+    fn cost(&self, x: usize, y: usize, depth: f32, normal: &[f32; 3], win: &Window) -> f32 {
+        let mut costs = self.source_costs(x, y, depth, normal, win, None);
+        aggregate(&mut costs[..self.sources.len()], self.cfg.top_k)
+    }
+
+    /// ACMH's view weights (Xu and Tao 2019, section 3.2) from the per-source costs of the
+    /// candidate hypotheses of one pixel: a source is selected when more than 2 candidates
+    /// match in it well (cost below `0.8 exp(-t^2 / 90)` at sweep `t`) and fewer than 3 badly
+    /// (above 1.2); its weight is the mean confidence `exp(-c^2 / (2 0.3^2))` of its good
+    /// matches. `None` when no source is selected.
+    fn view_weights(&self, matrix: &[[f32; MAX_SOURCES]], step: i32) -> Option<[f32; MAX_SOURCES]> {
+        let good = 0.8 * (-((step * step) as f32) / 90.0).exp();
+        let mut weights = [0.0f32; MAX_SOURCES];
+        let mut any = false;
+        for (j, w) in weights.iter_mut().enumerate().take(self.sources.len()) {
+            let (mut n_good, mut n_bad, mut conf) = (0, 0, 0.0f32);
+            for row in matrix {
+                let c = row[j];
+                if c < good {
+                    n_good += 1;
+                    conf += (-c * c / (2.0 * 0.09)).exp();
+                } else if c > 1.2 {
+                    n_bad += 1;
+                }
+            }
+            if n_good > 2 && n_bad < 3 {
+                *w = conf / n_good as f32;
+                any = true;
+            }
+        }
+        any.then_some(weights)
     }
 
     /// The depth at (`x`, `y`) of the plane that `h` holds at (`hx`, `hy`).
@@ -707,8 +824,116 @@ impl<'a> Solver<'a> {
         }
     }
 
+    /// Planes from a previous pass's depth map at the same resolution (random where it has
+    /// none), with their costs under this pass's cost.
+    fn initialise_from(&self, prior: &DepthMap, board: &mut Board) {
+        let (w, half) = (self.width(), board.half);
+        for colour in 0..2 {
+            board.cells[colour]
+                .par_chunks_mut(half)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (i, cell) in row.iter_mut().enumerate() {
+                        let x = 2 * i + ((colour + y) & 1);
+                        if x >= w || !self.active[y * w + x] {
+                            continue;
+                        }
+                        let Some(win) = self.window(x, y) else {
+                            continue;
+                        };
+                        let k = y * w + x;
+                        let (depth, normal) = if prior.depth[k] > 0.0 {
+                            (prior.depth[k], prior.normal[k])
+                        } else {
+                            let mut rng = Rng::for_item(self.seed, k as u64);
+                            let ray = self.problem.k.ray(x as f32, y as f32);
+                            (
+                                self.random_depth(&mut rng),
+                                self.random_normal(&mut rng, &ray),
+                            )
+                        };
+                        let cost = self.cost(x, y, depth, &normal, &win);
+                        *cell = Hyp {
+                            depth,
+                            normal,
+                            cost,
+                        };
+                    }
+                });
+        }
+    }
+
+    /// Planes from the coarser scale's `coarse` board (image half the size): each pixel
+    /// evaluates the planes of the (up to) four nearest coarse pixels, moved to its own ray,
+    /// and keeps the cheapest (an upsampling guided by the matching cost, in the spirit of
+    /// ACMM's joint bilateral upsampling).
+    fn upsample(&self, coarse: &Board, coarse_k: &Intrinsics, board: &mut Board) {
+        let (w, half) = (self.width(), board.half);
+        let k = self.problem.k;
+        for colour in 0..2 {
+            board.cells[colour]
+                .par_chunks_mut(half)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (i, cell) in row.iter_mut().enumerate() {
+                        let x = 2 * i + ((colour + y) & 1);
+                        if x >= w || !self.active[y * w + x] {
+                            continue;
+                        }
+                        let Some(win) = self.window(x, y) else {
+                            continue;
+                        };
+                        let to = k.ray(x as f32, y as f32);
+                        let (cx, cy) = ((x as f32 + 0.5) / 2.0 - 0.5, (y as f32 + 0.5) / 2.0 - 0.5);
+                        let (x0, y0) = (cx.floor().max(0.0) as usize, cy.floor().max(0.0) as usize);
+                        let mut best = INVALID;
+                        for (nx, ny) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
+                            if nx >= coarse.width || ny >= coarse.height {
+                                continue;
+                            }
+                            let h = coarse.get(nx, ny);
+                            if h.depth <= 0.0 {
+                                continue;
+                            }
+                            let from = coarse_k.ray(nx as f32, ny as f32);
+                            let denom = dot(&h.normal, &to);
+                            if denom >= -1e-6 {
+                                continue;
+                            }
+                            let depth = h.depth * dot(&h.normal, &from) / denom;
+                            if !(depth.is_finite() && depth > 0.0) {
+                                continue;
+                            }
+                            let cost = self.cost(x, y, depth, &h.normal, &win);
+                            if cost < best.cost {
+                                best = Hyp {
+                                    depth,
+                                    normal: h.normal,
+                                    cost,
+                                };
+                            }
+                        }
+                        if best.depth > 0.0 {
+                            *cell = best;
+                        } else {
+                            // Nothing to inherit: start from a random plane.
+                            let mut rng = Rng::for_item(self.seed, (y * w + x) as u64);
+                            let depth = self.random_depth(&mut rng);
+                            let normal = self.random_normal(&mut rng, &to);
+                            let cost = self.cost(x, y, depth, &normal, &win);
+                            *cell = Hyp {
+                                depth,
+                                normal,
+                                cost,
+                            };
+                        }
+                    }
+                });
+        }
+    }
+
     /// One propagation + refinement pass over the pixels of `colour`.
-    fn sweep(&self, board: &mut Board, colour: usize, iteration: usize) {
+    fn sweep(&self, board: &mut Board, colour: usize, iteration: usize, step: i32) {
         let (w, h, half) = (self.width(), self.height(), board.half);
         let [red, black] = &mut board.cells;
         let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
@@ -717,8 +942,8 @@ impl<'a> Solver<'a> {
             (black, red)
         };
         let seed = self.seed ^ (0x5EED_0000 + (2 * iteration + colour + 1) as u64);
-        // Perturbations shrink by half per iteration (Gipuma's refinement schedule).
-        let scale = 0.5f32.powi(iteration as i32);
+        // Perturbations shrink by half per step (Gipuma's refinement schedule).
+        let scale = 0.5f32.powi(step);
         let depth_amount = (0.05 * scale).max(0.002);
         let normal_amount = (0.5 * scale).max(0.02);
         current
@@ -733,8 +958,14 @@ impl<'a> Solver<'a> {
                     let Some(win) = self.window(x, y) else {
                         continue;
                     };
-                    let mut best = *cell;
-                    // Propagation: the cheapest hypothesis of each region, moved along its plane.
+                    // Propagation: the cheapest hypothesis of each region, moved along its
+                    // plane, plus the current one.
+                    let mut candidates = [(0.0f32, [0.0f32; 3]); 9];
+                    let mut count = 0;
+                    if cell.depth > 0.0 {
+                        candidates[0] = (cell.depth, cell.normal);
+                        count = 1;
+                    }
                     for region in &self.regions {
                         let mut pick: Option<(Hyp, usize, usize)> = None;
                         for &(dx, dy) in region {
@@ -751,15 +982,40 @@ impl<'a> Solver<'a> {
                         if let Some((cand, nx, ny)) = pick
                             && let Some(depth) = self.transfer(&cand, nx, ny, x, y)
                         {
-                            let cost = self.cost(x, y, depth, &cand.normal, &win);
-                            if cost < best.cost {
-                                best = Hyp {
-                                    depth,
-                                    normal: cand.normal,
-                                    cost,
-                                };
-                            }
+                            candidates[count] = (depth, cand.normal);
+                            count += 1;
                         }
+                    }
+                    let mut matrix = [[MAX_COST; MAX_SOURCES]; 9];
+                    for (row, (depth, normal)) in matrix.iter_mut().zip(&candidates[..count]) {
+                        *row = self.source_costs(x, y, *depth, normal, &win, None);
+                    }
+                    let weights = if self.cfg.adaptive_views {
+                        self.view_weights(&matrix[..count], step)
+                    } else {
+                        None
+                    };
+                    let n = self.sources.len();
+                    let top_k = self.cfg.top_k;
+                    let combine = |mut c: [f32; MAX_SOURCES]| match &weights {
+                        Some(wts) => weighted(&c, wts),
+                        None => aggregate(&mut c[..n], top_k),
+                    };
+                    // Without weights the current cost stands as stored; with them every
+                    // candidate, the current one included, is judged under the same weights.
+                    let mut best = if weights.is_some() { INVALID } else { *cell };
+                    for (row, (depth, normal)) in matrix.iter().zip(&candidates[..count]) {
+                        let cost = combine(*row);
+                        if cost < best.cost {
+                            best = Hyp {
+                                depth: *depth,
+                                normal: *normal,
+                                cost,
+                            };
+                        }
+                    }
+                    if best.depth <= 0.0 {
+                        continue;
                     }
                     // Refinement: new and perturbed depths and normals.
                     let mut rng = Rng::for_item(seed, (y * w + x) as u64);
@@ -785,7 +1041,14 @@ impl<'a> Solver<'a> {
                         if depth <= 0.0 || (depth == best.depth && normal == best.normal) {
                             continue;
                         }
-                        let cost = self.cost(x, y, depth, &normal, &win);
+                        let cost = combine(self.source_costs(
+                            x,
+                            y,
+                            depth,
+                            &normal,
+                            &win,
+                            weights.as_ref(),
+                        ));
                         if cost < best.cost {
                             best = Hyp {
                                 depth,
@@ -798,6 +1061,17 @@ impl<'a> Solver<'a> {
                 }
             });
     }
+}
+
+/// The `weights`-weighted mean of `costs`.
+#[inline]
+fn weighted(costs: &[f32; MAX_SOURCES], weights: &[f32; MAX_SOURCES]) -> f32 {
+    let (mut sum, mut total) = (0.0, 0.0);
+    for (c, w) in costs.iter().zip(weights) {
+        sum += c * w;
+        total += w;
+    }
+    sum / total
 }
 
 /// The mean of the `k` smallest costs (all of them when fewer).
@@ -827,21 +1101,128 @@ fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// Runs PatchMatch on `problem` with `seed` and returns its depth map (pixels above
-/// `cfg.max_cost` cleared).
-pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> DepthMap {
-    let (w, h) = (problem.image.width, problem.image.height);
-    let solver = Solver::new(problem, cfg, seed);
-    let mut board = Board::new(w, h);
-    if problem.sources.is_empty() {
-        return board.to_depth_map(cfg.max_cost);
-    }
-    solver.initialise(&mut board);
-    for iteration in 0..cfg.iterations {
-        for colour in 0..2 {
-            solver.sweep(&mut board, colour, iteration);
+/// Smallest image side a coarser scale may have.
+const MIN_SCALE_SIDE: usize = 96;
+
+/// `image` halved: each pixel the mean of a 2x2 block (a last odd row or column is dropped).
+fn halve(image: &GreyImage) -> GreyImage {
+    let (w, h) = (image.width / 2, image.height / 2);
+    let mut out = GreyImage::new(w, h);
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let (r0, r1) = (image.row(2 * y), image.row(2 * y + 1));
+            for (x, v) in row.iter_mut().enumerate() {
+                *v = 0.25 * (r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1]);
+            }
+        });
+    out
+}
+
+/// A mask halved: a coarse pixel is in when any of its 2x2 block is.
+fn halve_mask(mask: &[u8], width: usize, height: usize) -> Vec<u8> {
+    let (w, h) = (width / 2, height / 2);
+    let mut out = vec![0u8; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let at = |xx: usize, yy: usize| mask[yy * width + xx];
+            out[y * w + x] = (at(2 * x, 2 * y)
+                | at(2 * x + 1, 2 * y)
+                | at(2 * x, 2 * y + 1)
+                | at(2 * x + 1, 2 * y + 1)
+                != 0) as u8;
         }
     }
+    out
+}
+
+/// Runs PatchMatch on `problem` with `seed`, coarse to fine, and returns its depth map at full
+/// resolution (pixels above `cfg.max_cost` cleared).
+pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> DepthMap {
+    let (w, h) = (problem.image.width, problem.image.height);
+    if problem.sources.is_empty() {
+        return Board::new(w, h).to_depth_map(cfg.max_cost);
+    }
+    if let Some(prior) = problem.prior {
+        // The geometric pass: full resolution, from the first pass's planes.
+        let solver = Solver::new(problem, cfg, seed ^ 0x6E0_u64);
+        let mut board = Board::new(w, h);
+        solver.initialise_from(prior, &mut board);
+        for iteration in 0..cfg.geometric_iterations {
+            for colour in 0..2 {
+                solver.sweep(&mut board, colour, iteration, 4 + iteration as i32);
+            }
+        }
+        return board.to_depth_map(cfg.max_cost + cfg.geometric_weight);
+    }
+    // The pyramid: level 0 is the full resolution.
+    let mut levels = 1;
+    while levels < cfg.scales && (w >> levels).min(h >> levels) >= MIN_SCALE_SIDE {
+        levels += 1;
+    }
+    let mut refs = vec![problem.image.clone()];
+    let mut srcs: Vec<Vec<GreyImage>> = vec![Vec::new()];
+    let mut masks: Vec<Option<Vec<u8>>> = vec![problem.mask.map(|m| m.to_vec())];
+    for l in 1..levels {
+        let r = halve(&refs[l - 1]);
+        let s: Vec<GreyImage> = if l == 1 {
+            problem.sources.iter().map(|s| halve(s.image)).collect()
+        } else {
+            srcs[l - 1].iter().map(halve).collect()
+        };
+        let m = masks[l - 1]
+            .as_ref()
+            .map(|m| halve_mask(m, refs[l - 1].width, refs[l - 1].height));
+        refs.push(r);
+        srcs.push(s);
+        masks.push(m);
+    }
+    let mut coarse: Option<(Board, Intrinsics)> = None;
+    for level in (0..levels).rev() {
+        let factor = (1usize << level) as f64;
+        let k = problem.k.downscaled(factor);
+        let sources = problem
+            .sources
+            .iter()
+            .enumerate()
+            .map(|(i, s)| Source {
+                image: if level == 0 { s.image } else { &srcs[level][i] },
+                k: s.k.downscaled(factor),
+                src_from_ref: s.src_from_ref,
+                depth: None,
+            })
+            .collect();
+        let lp = Problem {
+            image: &refs[level],
+            k,
+            sources,
+            depth_range: problem.depth_range,
+            mask: masks[level].as_deref(),
+            prior: None,
+        };
+        let level_seed = seed ^ (level as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let solver = Solver::new(&lp, cfg, level_seed);
+        let mut board = Board::new(lp.image.width, lp.image.height);
+        let (iterations, first_step) = match &coarse {
+            None => {
+                solver.initialise(&mut board);
+                (cfg.iterations, 0)
+            }
+            Some((c, ck)) => {
+                solver.upsample(c, ck, &mut board);
+                // Finer scales refine: their perturbations start where the coarse ones ended.
+                (cfg.fine_iterations, cfg.iterations.min(4) as i32)
+            }
+        };
+        for iteration in 0..iterations {
+            for colour in 0..2 {
+                solver.sweep(&mut board, colour, iteration, first_step + iteration as i32);
+            }
+        }
+        coarse = Some((board, k));
+    }
+    let (board, _) = coarse.expect("at least one level");
     board.to_depth_map(cfg.max_cost)
 }
 
@@ -914,10 +1295,12 @@ mod tests {
                     image: img,
                     k,
                     src_from_ref: *p * reference.inverse(),
+                    depth: None,
                 })
                 .collect(),
             depth_range: (1.0, 4.0),
             mask: None,
+            prior: None,
         };
         let cfg = PatchMatchConfig::default();
         let map = patch_match(&problem, &cfg, 7);
@@ -976,9 +1359,11 @@ mod tests {
                 image: &src_img,
                 k,
                 src_from_ref: source * reference.inverse(),
+                depth: None,
             }],
             depth_range: (1.0, 4.0),
             mask: None,
+            prior: None,
         };
         let cfg = PatchMatchConfig {
             iterations: 2,

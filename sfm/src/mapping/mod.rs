@@ -1,0 +1,10 @@
+//! Mapping: cameras and 3D points from the verified pairs.
+//!
+//! `tracks.rs` ([`tracks::build_tracks`]: union-find over the matches, inconsistent tracks
+//! split), `mapper.rs` ([`mapper::map`]: COLMAP-like incremental mapping into one or more
+//! models, degenerate input reported) and `reconstruct.rs` (the sfm stage over a workspace:
+//! [`reconstruct::run_sfm`] reads it, maps, applies silhouettes and writes the models).
+
+pub mod mapper;
+pub mod reconstruct;
+pub mod tracks;
