@@ -7,6 +7,7 @@
 mod dense;
 mod eval;
 mod features;
+mod geotex;
 mod matching;
 mod mesh;
 mod progress;
@@ -81,6 +82,9 @@ enum Command {
     Pst(pst::PstArgs),
     /// Texture sprites: render or bake a sprite scene, build octree textures.
     Sprites(sprites::SpritesArgs),
+    /// Resize models with geometric texture (threads, bumps, scales) keeping the texture at
+    /// its size (paper 002); synthetic models with ground truth.
+    Geotex(geotex::GeotexArgs),
     /// Write a synthetic dataset: photos of a procedurally textured shape from known cameras,
     /// with masks, ground-truth cameras (COLMAP, Middlebury) and mesh (PLY, GLB).
     Synth(synth::SynthArgs),
@@ -121,6 +125,7 @@ fn main() -> ExitCode {
         Command::View(args) => view::run(args, &ctx),
         Command::Pst(args) => pst::run(args, &ctx),
         Command::Sprites(args) => sprites::run(args, &ctx),
+        Command::Geotex(args) => geotex::run(args, &ctx),
         Command::Synth(args) => synth::run(args, &ctx),
     };
     match result {

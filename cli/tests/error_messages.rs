@@ -132,6 +132,24 @@ fn failure_case(verb: &str, dir: &Path) -> Option<Vec<String>> {
                 p("cloud.pst"),
             ]
         }
+        // A scale of 0 along x (on a valid mesh: the check is the library's).
+        "geotex" => {
+            write(
+                &dir.join("tri.ply"),
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                 end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+            );
+            vec![
+                "geotex".into(),
+                "resize".into(),
+                p("tri.ply"),
+                "--scale".into(),
+                "0,1,1".into(),
+                "-o".into(),
+                p("out.ply"),
+            ]
+        }
         "synth" => vec![
             "synth".into(),
             "torus".into(),

@@ -6,6 +6,9 @@
 //! the slice the index was built from and its Euclidean (not squared) distance, nearest
 //! first; equally distant points come in a deterministic order.
 //!
+//! [`FeatureIndex`] holds feature vectors of any fixed dimension `K` (patch descriptors,
+//! PCA-reduced neighbourhoods) as given, without centring, for k-nearest queries.
+//!
 //! Precision: points are stored as f32 relative to the centre of their bounding box, which
 //! halves memory (10M points take about 0.25 GB) and keeps distances accurate to about
 //! 1e-7 of the cloud's extent wherever the cloud sits (georeferenced coordinates included).
@@ -286,6 +289,76 @@ macro_rules! point_index {
 point_index!(PointIndex3, Point3, 3, "3D points");
 point_index!(PointIndex2, Point2, 2, "2D points");
 
+/// A k-nearest-neighbour index over `K`-dimensional f32 feature vectors (stored as given:
+/// features are expected to be of moderate magnitude, e.g. normalised or PCA-projected).
+/// A k-d tree pays off for `K` up to about 10-16; beyond that, reduce the dimension first.
+pub struct FeatureIndex<const K: usize> {
+    /// `None` for an empty set.
+    tree: Option<ImmutableKdTree<f32, K>>,
+    len: usize,
+}
+
+impl<const K: usize> FeatureIndex<K> {
+    /// Builds the index (in parallel for large inputs). Fails on non-finite features.
+    pub fn build(features: &[[f32; K]]) -> Result<FeatureIndex<K>, KnnError> {
+        if features.len() >= u32::MAX as usize {
+            return Err(KnnError::TooManyPoints {
+                count: features.len(),
+            });
+        }
+        if let Some(index) = features
+            .iter()
+            .position(|f| f.iter().any(|c| !c.is_finite() || c.abs() >= f32::MAX))
+        {
+            return Err(KnnError::NonFinitePoint { index });
+        }
+        if features.is_empty() {
+            return Ok(FeatureIndex { tree: None, len: 0 });
+        }
+        let built = if features.len() >= PARALLEL_BUILD_MIN {
+            ImmutableKdTree::new_from_slice_parallel(features)
+        } else {
+            ImmutableKdTree::new_from_slice(features)
+        };
+        let tree = built.map_err(|_| KnnError::TooManyPoints {
+            count: features.len(),
+        })?;
+        Ok(FeatureIndex {
+            tree: Some(tree),
+            len: features.len(),
+        })
+    }
+
+    /// Number of indexed features.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The `k` nearest features (fewer when the index holds fewer), nearest first; empty for
+    /// a non-finite query.
+    pub fn k_nearest(&self, q: &[f32; K], k: usize) -> Vec<Neighbour> {
+        let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZeroUsize::new(k)) else {
+            return Vec::new();
+        };
+        if q.iter().any(|c| !c.is_finite()) {
+            return Vec::new();
+        }
+        tree.query(q)
+            .nearest_n::<SquaredEuclidean<f32>>(k)
+            .execute()
+            .into_iter()
+            .map(|r| Neighbour {
+                index: r.item,
+                distance: (r.distance as f64).sqrt(),
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -447,6 +520,46 @@ mod tests {
             PointIndex3::build(&far),
             Err(KnnError::OutOfRange { .. })
         ));
+    }
+
+    #[test]
+    fn feature_index_matches_brute_force_in_eight_dimensions() {
+        let mut r = Rng(11);
+        let features: Vec<[f32; 8]> = (0..3000)
+            .map(|_| std::array::from_fn(|_| r.next() as f32))
+            .collect();
+        let index = FeatureIndex::build(&features).unwrap();
+        assert_eq!(index.len(), 3000);
+        for _ in 0..100 {
+            let q: [f32; 8] = std::array::from_fn(|_| r.next() as f32);
+            let got = index.k_nearest(&q, 5);
+            let mut want: Vec<f64> = features
+                .iter()
+                .map(|f| {
+                    f.iter()
+                        .zip(&q)
+                        .map(|(a, b)| ((a - b) as f64).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .collect();
+            want.sort_by(f64::total_cmp);
+            assert_eq!(got.len(), 5);
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g.distance - w).abs() < 1e-5);
+            }
+        }
+        assert!(index.k_nearest(&[f32::NAN; 8], 3).is_empty());
+        assert!(
+            FeatureIndex::<8>::build(&[])
+                .unwrap()
+                .k_nearest(&[0.0; 8], 3)
+                .is_empty()
+        );
+        assert_eq!(
+            FeatureIndex::build(&[[0.0f32, f32::INFINITY]]).err(),
+            Some(KnnError::NonFinitePoint { index: 0 })
+        );
     }
 
     #[test]

@@ -23,6 +23,9 @@
 //!
 //! - [`shapes`]: closed test shapes with known genus (sphere, torus, double torus, blob, temple).
 //! - [`large_mesh`]: huge subdivided, displaced spheres streamed to PLY (pst benchmarks).
+//! - [`geometric_texture`]: models carrying geometric texture (threaded cylinder, box with
+//!   two kinds of bumps, blob with scales) with per-vertex ground-truth labels and feature
+//!   sizes, for the resizing of fresco-geotex.
 //! - [`point_clouds`]: oriented points sampled from a mesh ([`sample_points`]) with noise,
 //!   holes and outliers, for surface reconstruction tests.
 //! - [`albedo`]: a UV-free procedural albedo over 3D positions ([`Albedo`]).
@@ -32,6 +35,7 @@
 //!   with their ground truth where it exists.
 
 pub mod albedo;
+pub mod geometric_texture;
 mod hash_chain;
 pub mod large_mesh;
 pub mod point_clouds;

@@ -1,0 +1,157 @@
+//! Longest-edge bisection of stretched triangles. After the base is stretched, its
+//! triangles are too long along the stretch to carry texture at the original scale (paper
+//! 002 §5: "in case the triangles of a geometric feature is coarse and the scale of
+//! resizing is large, some unnatural result may appear ... a subdivision pretreatment can
+//! be applied"). Edges of texture regions longer than a bound are split at their midpoint,
+//! longest first, each split also splitting the one or two faces on the edge so the mesh
+//! stays conforming. Non-manifold edges are left alone.
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+
+use fresco_core::nalgebra::Point3;
+
+/// What [`refine`] added: for each new vertex (numbered after the old ones, in order), the
+/// two vertices of the edge it split.
+pub type Parents = Vec<[u32; 2]>;
+
+fn key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// Splits every edge with at least one end where `eligible` (by label) longer than
+/// `max_length`, until none is left; new vertices take the label of their edge's ends
+/// (the non-zero one if they differ, the smaller if both are non-zero). Returns the
+/// parents of the new vertices. `limit` bounds the number of new vertices.
+pub fn refine(
+    positions: &mut Vec<Point3<f64>>,
+    faces: &mut Vec<[u32; 3]>,
+    labels: &mut Vec<u32>,
+    max_length: f64,
+    limit: usize,
+) -> Parents {
+    let mut edge_faces: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (f, face) in faces.iter().enumerate() {
+        for k in 0..3 {
+            edge_faces
+                .entry(key(face[k], face[(k + 1) % 3]))
+                .or_default()
+                .push(f as u32);
+        }
+    }
+    let long = |positions: &[Point3<f64>], labels: &[u32], a: u32, b: u32| -> Option<u64> {
+        let (la, lb) = (labels[a as usize], labels[b as usize]);
+        if la == 0 && lb == 0 {
+            return None;
+        }
+        let len = (positions[a as usize] - positions[b as usize]).norm();
+        (len > max_length).then_some(len.to_bits())
+    };
+    // Longest first; ties by vertex ids so that the order is deterministic.
+    let mut heap: BinaryHeap<(u64, Reverse<(u32, u32)>)> = BinaryHeap::new();
+    let mut initial: Vec<(u32, u32)> = edge_faces.keys().copied().collect();
+    initial.sort_unstable();
+    for (a, b) in initial {
+        if let Some(l) = long(positions, labels, a, b) {
+            heap.push((l, Reverse((a, b))));
+        }
+    }
+    let mut parents = Parents::new();
+    while let Some((_, Reverse((a, b)))) = heap.pop() {
+        if parents.len() >= limit {
+            break;
+        }
+        let Some(on_edge) = edge_faces.get(&(a, b)) else {
+            continue;
+        };
+        if on_edge.len() > 2 {
+            continue;
+        }
+        let on_edge = on_edge.clone();
+        edge_faces.remove(&(a, b));
+        let m = positions.len() as u32;
+        positions.push(nalgebra_mid(&positions[a as usize], &positions[b as usize]));
+        let (la, lb) = (labels[a as usize], labels[b as usize]);
+        labels.push(match (la, lb) {
+            (0, l) | (l, 0) => l,
+            (x, y) => x.min(y),
+        });
+        parents.push([a, b]);
+        let mut touched = vec![(a, m), (m, b)];
+        for f in on_edge {
+            let face = faces[f as usize];
+            // Rotate so that the split edge is face[0] -> face[1].
+            let k = (0..3)
+                .find(|&k| key(face[k], face[(k + 1) % 3]) == (a, b))
+                .expect("face on the edge");
+            let (p, q, c) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
+            let g = faces.len() as u32;
+            faces[f as usize] = [p, m, c];
+            faces.push([m, q, c]);
+            edge_faces.entry(key(p, m)).or_default().push(f);
+            edge_faces.entry(key(m, q)).or_default().push(g);
+            edge_faces.entry(key(m, c)).or_default().extend([f, g]);
+            if let Some(list) = edge_faces.get_mut(&key(q, c)) {
+                for x in list.iter_mut() {
+                    if *x == f {
+                        *x = g;
+                    }
+                }
+            }
+            touched.push((m, c));
+        }
+        for (x, y) in touched {
+            let (x, y) = key(x, y);
+            if let Some(l) = long(positions, labels, x, y) {
+                heap.push((l, Reverse((x, y))));
+            }
+        }
+    }
+    parents
+}
+
+fn nalgebra_mid(a: &Point3<f64>, b: &Point3<f64>) -> Point3<f64> {
+    fresco_core::nalgebra::center(a, b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fresco_core::{Mesh, Topology};
+
+    #[test]
+    fn stretched_patch_is_split_until_edges_are_short_and_stays_conforming() {
+        // A 10 x 10 grid stretched 3x along x, labelled texture on its left half.
+        let mesh = fresco_datasets::shapes::grid_patch(10, |x, y| Point3::new(3.0 * x, y, 0.0));
+        let mut positions = mesh.positions.clone();
+        let mut faces = mesh.faces.clone();
+        let mut labels: Vec<u32> = positions.iter().map(|p| u32::from(p.x < 1.5)).collect();
+        let area_before = mesh.surface_area();
+        let parents = refine(&mut positions, &mut faces, &mut labels, 0.15, usize::MAX);
+        assert!(!parents.is_empty());
+        let refined = Mesh::from_triangles(positions.clone(), faces.clone());
+        assert!((refined.surface_area() - area_before).abs() < 1e-9);
+        let topo = Topology::build(&refined).unwrap();
+        assert_eq!(topo.boundary_loops().len(), 1);
+        assert!(topo.non_manifold_edges().is_empty());
+        assert!(topo.inconsistently_oriented_edges().is_empty());
+        for f in &faces {
+            for k in 0..3 {
+                let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                if labels[a] != 0 || labels[b] != 0 {
+                    assert!((positions[a] - positions[b]).norm() <= 0.15 + 1e-12);
+                }
+            }
+        }
+        for (k, [a, b]) in parents.iter().enumerate() {
+            let m = mesh.positions.len() + k;
+            let mid = nalgebra_mid(&positions[*a as usize], &positions[*b as usize]);
+            assert_eq!(positions[m], mid);
+        }
+        // The right half (base) keeps long edges except next to the texture.
+        assert!(faces.iter().any(|f| {
+            let (a, b) = (f[0] as usize, f[1] as usize);
+            labels[a] == 0 && labels[b] == 0 && (positions[a] - positions[b]).norm() > 0.2
+        }));
+    }
+}

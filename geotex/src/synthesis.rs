@@ -1,0 +1,1018 @@
+//! Re-synthesis of the extracted texture over the resized base (paper 002 §3.4): texture
+//! optimisation after Kwatra et al. 2005 ("Texture optimization for example-based
+//! synthesis", the paper's [8]) and its mesh version ([5]), with the example being the
+//! displacement field extracted from the same region of the input.
+//!
+//! - Neighbourhood template (the paper's figure 3, after [17]): around a vertex, the
+//!   triangles are projected orthographically on its tangent plane, nearest first, until a
+//!   `(2m+1) x (2m+1)` grid of spacing `s` is covered; each grid point keeps the triangle it
+//!   fell in and its barycentric weights: a row of the sparse interpolation matrix `W_p`.
+//!   The grid spacing at the finest level is `d = sqrt(2A)`, `A` the mean triangle area of
+//!   the input region; the same `d` is used on the resized mesh, so neighbourhoods are
+//!   compared at the texture's original size. Orientation needs no user input (the natural
+//!   correspondence): the grid's first axis is the region's least normal-aligned world axis
+//!   projected on the tangent plane, on both sides.
+//! - Energy (eq. 8): `E_t = Σ_{p ∈ X†} |W_1 x − W_2 z_p|²` over output centres `X†` a
+//!   quarter of a template apart, `z_p` the input neighbourhood nearest to the output's;
+//!   plus the constraint term of eq. 6, `λ E_c = μ Σ_i c_i (x_i − u_i)²`, with `u` the
+//!   displacement carried by the natural correspondence and `c_i` fading from 1 on the
+//!   region's border to 0 a band inside it: the seam with the base (and the fade of the
+//!   texture into it) is kept; plus a small damping towards the previous iterate.
+//! - Solving (EM-like): one step matches every output neighbourhood to its nearest input
+//!   neighbourhood (approximate: nearest `candidates` in an 8-D PCA projection through
+//!   kiddo, plus the coherent candidates of k-coherence search (Tong et al. 2002) — the
+//!   input neighbourhoods that the neighbouring centres' matches, shifted by the offset
+//!   between the centres, point at — all re-ranked by the full distance); the other
+//!   minimises the energy for `x` by least squares (normal equations, factored once per
+//!   level since `W` does not change). Coherent candidates make the output copy whole
+//!   stretches of the input, which keeps a thread running without dislocations.
+//! - Coarse to fine: `levels` template spacings `d 2^(levels-1)` .. `d`. The first level
+//!   starts from input neighbourhoods pasted at random on the output centres (the
+//!   patch-wise version of Kwatra's random initialisation; random single values average
+//!   to a flat field that the matching then keeps); `random_start = false` starts from the
+//!   stretched input instead. Input neighbourhoods are taken inside the region (a
+//!   template nine tenths inside) so that no flat neighbourhood of the fade into the base
+//!   attracts the iterates; the output's border band is held by the constraint.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use fresco_core::Rng;
+use fresco_core::knn::{FeatureIndex, PointIndex3};
+use fresco_core::nalgebra::{DMatrix, Point3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
+
+use crate::GeotexError;
+use crate::sparse::SymmetricMatrix;
+
+/// Dimension of the PCA projection the nearest-neighbour search runs in.
+const PCA_DIMENSIONS: usize = 8;
+
+/// Settings of the re-synthesis.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SynthesisConfig {
+    /// Half-width `m` of the `(2m+1)²` template. Default: `4` (9 x 9, as Kwatra's smallest).
+    pub half_width: usize,
+    /// Template spacings from `d 2^(levels-1)` down to `d`. Default: `3`.
+    pub levels: usize,
+    /// EM iterations per level at most (a level stops early when fewer than 0.5% of the
+    /// matches change). Default: `8`: 24 in all, the paper's 25-30.
+    pub iterations: usize,
+    /// Nearest PCA neighbours re-ranked by the full distance. Default: `4`.
+    pub candidates: usize,
+    /// Input neighbourhoods per level at most (a seeded subset beyond). Default: `16_000`.
+    pub max_exemplars: usize,
+    /// Width of the band along the region's border where the correspondence constraint
+    /// fades out, in `d`. Default: `4.0` (half the finest template).
+    pub boundary_band: f64,
+    /// Weight `μ` of the constraint on the border, relative to the mean weight a vertex
+    /// gets from the templates. Default: `4.0`.
+    pub constraint_weight: f64,
+    /// Weight of the damping towards the previous iterate, relative likewise. Default: `0.05`.
+    pub damping: f64,
+    /// Start from random input displacements (Kwatra); false starts from the stretched
+    /// input. Default: `true`.
+    pub random_start: bool,
+    /// Seed of the random start, the template shifts and the exemplar subsets (the
+    /// resize sets it from `ResizeConfig::seed`). Default: `0`.
+    pub seed: u64,
+}
+
+impl Default for SynthesisConfig {
+    fn default() -> Self {
+        SynthesisConfig {
+            half_width: 4,
+            levels: 3,
+            iterations: 8,
+            candidates: 4,
+            max_exemplars: 16_000,
+            boundary_band: 4.0,
+            constraint_weight: 4.0,
+            damping: 0.05,
+            random_start: true,
+            seed: 0,
+        }
+    }
+}
+
+impl SynthesisConfig {
+    pub fn check(&self) -> Result<(), GeotexError> {
+        if !(1..=16).contains(&self.half_width) {
+            return Err(GeotexError::config(
+                "synthesis.half_width",
+                self.half_width,
+                "in 1..=16",
+            ));
+        }
+        if !(1..=6).contains(&self.levels) {
+            return Err(GeotexError::config(
+                "synthesis.levels",
+                self.levels,
+                "in 1..=6",
+            ));
+        }
+        if self.iterations == 0 {
+            return Err(GeotexError::config("synthesis.iterations", 0, "at least 1"));
+        }
+        if self.candidates == 0 {
+            return Err(GeotexError::config("synthesis.candidates", 0, "at least 1"));
+        }
+        if self.max_exemplars < 32 {
+            return Err(GeotexError::config(
+                "synthesis.max_exemplars",
+                self.max_exemplars,
+                "at least 32",
+            ));
+        }
+        for (field, v) in [
+            ("synthesis.boundary_band", self.boundary_band),
+            ("synthesis.constraint_weight", self.constraint_weight),
+            ("synthesis.damping", self.damping),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(GeotexError::config(field, v, "a finite number > 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A triangle mesh seen as the surface templates are sampled on.
+pub(crate) struct Surface<'a> {
+    pub faces: &'a [[u32; 3]],
+    pub positions: &'a [Point3<f64>],
+    pub normals: &'a [Vector3<f64>],
+    /// Faces around each vertex (compressed rows).
+    offsets: Vec<u32>,
+    incident: Vec<u32>,
+    mean_edge: f64,
+}
+
+impl<'a> Surface<'a> {
+    pub fn new(
+        faces: &'a [[u32; 3]],
+        positions: &'a [Point3<f64>],
+        normals: &'a [Vector3<f64>],
+    ) -> Surface<'a> {
+        let n = positions.len();
+        let mut offsets = vec![0u32; n + 1];
+        for f in faces {
+            for &v in f {
+                offsets[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut fill = offsets.clone();
+        let mut incident = vec![0u32; offsets[n] as usize];
+        let mut edge_sum = 0.0;
+        for (k, f) in faces.iter().enumerate() {
+            for c in 0..3 {
+                let v = f[c] as usize;
+                incident[fill[v] as usize] = k as u32;
+                fill[v] += 1;
+                edge_sum += (positions[f[c] as usize] - positions[f[(c + 1) % 3] as usize]).norm();
+            }
+        }
+        Surface {
+            faces,
+            positions,
+            normals,
+            offsets,
+            incident,
+            mean_edge: edge_sum / (3 * faces.len()).max(1) as f64,
+        }
+    }
+
+    fn faces_of(&self, v: u32) -> &[u32] {
+        &self.incident[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
+    }
+}
+
+/// One grid point of a template: the face it fell in and its barycentric weights of the
+/// face's corners 1 and 2 (corner 0 takes the rest); `face == u32::MAX` when the mesh did
+/// not reach it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Sample {
+    face: u32,
+    b: [f32; 2],
+}
+
+const MISSING: Sample = Sample {
+    face: u32::MAX,
+    b: [0.0; 2],
+};
+
+impl Sample {
+    fn weights(&self) -> [f64; 3] {
+        let (b1, b2) = (self.b[0] as f64, self.b[1] as f64);
+        [1.0 - b1 - b2, b1, b2]
+    }
+}
+
+/// The template's frame at a vertex: the region's axis projected on the tangent plane, and
+/// the normal crossed with it; a second axis when the first is nearly normal.
+fn frame(n: &Vector3<f64>, axes: [usize; 2]) -> (Vector3<f64>, Vector3<f64>) {
+    for a in axes {
+        let e = Vector3::ith(a, 1.0);
+        let t = e - n * n.dot(&e);
+        if let Some(t1) = t.try_normalize(0.3) {
+            return (t1, n.cross(&t1));
+        }
+    }
+    let t1 = n.cross(&Vector3::ith(axes[0], 1.0)).normalize();
+    (t1, n.cross(&t1))
+}
+
+/// Reusable per-thread buffers of the template sampler.
+#[derive(Default)]
+struct Scratch {
+    /// Generation stamp per face: visited in the current call when equal to `generation`.
+    seen: Vec<u32>,
+    generation: u32,
+    heap: BinaryHeap<(Reverse<u64>, u32)>,
+}
+
+/// Samples the template of half-width `m`, spacing `s`, around vertex `centre` shifted by
+/// `offset` grid steps along its frame (module docs): faces are unfolded nearest first
+/// until every grid point is covered or the faces get farther than the template's reach.
+///
+/// Why the shift: grids centred on vertices put their samples at fixed phases of the
+/// vertex lattice (on the input, exactly on vertices when `d` matches the edge length), so
+/// the piecewise-linear blur between vertices differs systematically between input and
+/// output samples and the synthesis locks features to the output's lattice (a thread's
+/// pitch snapping to a multiple of the stretched edge length, 6% off). Random sub-step
+/// shifts on both sides make the blur the same in distribution.
+#[allow(clippy::too_many_arguments)]
+fn sample_template(
+    surface: &Surface,
+    centre: u32,
+    offset: [f64; 2],
+    axes: [usize; 2],
+    m: usize,
+    s: f64,
+    scratch: &mut Scratch,
+) -> Vec<Sample> {
+    let w = 2 * m + 1;
+    let mut out = vec![MISSING; w * w];
+    let n = surface.normals[centre as usize];
+    if n.norm_squared() == 0.0 {
+        return out;
+    }
+    let (t1, t2) = frame(&n, axes);
+    // The grid's origin: the vertex moved within the tangent plane by `offset` steps.
+    let p = surface.positions[centre as usize] + (t1 * offset[0] + t2 * offset[1]) * s;
+    if scratch.seen.len() != surface.faces.len() {
+        scratch.seen = vec![0; surface.faces.len()];
+        scratch.generation = 0;
+    }
+    scratch.generation = scratch.generation.wrapping_add(1);
+    if scratch.generation == 0 {
+        scratch.seen.fill(0);
+        scratch.generation = 1;
+    }
+    let generation = scratch.generation;
+    scratch.heap.clear();
+    let reach = (m as f64 * s * std::f64::consts::SQRT_2) * 1.2 + 2.0 * surface.mean_edge;
+    let reach2 = reach * reach;
+    // The unfolding stays on the side of the surface the template looks at: a face turned
+    // more than about 80 degrees from the centre's normal is beyond the horizon of the
+    // tangent plane (on a closed, curved region — a blob — the coarse templates reach past
+    // it), and projecting it would both give grid points the far side's values and flood
+    // the whole reach of the mesh.
+    let faces_the_template = |f: u32| -> bool {
+        let [a, b, c] = surface.faces[f as usize].map(|v| surface.positions[v as usize]);
+        let normal = (b - a).cross(&(c - a));
+        normal.dot(&n) > 0.17 * normal.norm()
+    };
+    let centroid_distance = |f: u32| -> f64 {
+        let face = surface.faces[f as usize];
+        let c = (surface.positions[face[0] as usize].coords
+            + surface.positions[face[1] as usize].coords
+            + surface.positions[face[2] as usize].coords)
+            / 3.0;
+        (c - p.coords).norm_squared()
+    };
+    // Unfolding starts from the faces around the vertex: the shifted origin lies within a
+    // step of it, inside the first ring or next to it.
+    for &f in surface.faces_of(centre) {
+        scratch.seen[f as usize] = generation;
+        scratch
+            .heap
+            .push((Reverse(centroid_distance(f).to_bits()), f));
+    }
+    let mut missing = w * w;
+    let half = m as f64;
+    while let Some((_, f)) = scratch.heap.pop() {
+        let face = surface.faces[f as usize];
+        // Projected corners in grid units.
+        let q = face.map(|v| {
+            let d = surface.positions[v as usize] - p;
+            [d.dot(&t1) / s, d.dot(&t2) / s]
+        });
+        let area2 =
+            (q[1][0] - q[0][0]) * (q[2][1] - q[0][1]) - (q[1][1] - q[0][1]) * (q[2][0] - q[0][0]);
+        if area2 > 1e-12 {
+            let lo_i = q
+                .iter()
+                .map(|x| x[0])
+                .fold(f64::INFINITY, f64::min)
+                .ceil()
+                .max(-half);
+            let hi_i = q
+                .iter()
+                .map(|x| x[0])
+                .fold(f64::NEG_INFINITY, f64::max)
+                .floor()
+                .min(half);
+            let lo_j = q
+                .iter()
+                .map(|x| x[1])
+                .fold(f64::INFINITY, f64::min)
+                .ceil()
+                .max(-half);
+            let hi_j = q
+                .iter()
+                .map(|x| x[1])
+                .fold(f64::NEG_INFINITY, f64::max)
+                .floor()
+                .min(half);
+            let mut j = lo_j;
+            while j <= hi_j {
+                let mut i = lo_i;
+                while i <= hi_i {
+                    let slot = (j + half) as usize * w + (i + half) as usize;
+                    if out[slot].face == u32::MAX {
+                        let b1 = ((i - q[0][0]) * (q[2][1] - q[0][1])
+                            - (j - q[0][1]) * (q[2][0] - q[0][0]))
+                            / area2;
+                        let b2 = ((q[1][0] - q[0][0]) * (j - q[0][1])
+                            - (q[1][1] - q[0][1]) * (i - q[0][0]))
+                            / area2;
+                        let eps = -1e-9;
+                        if b1 >= eps && b2 >= eps && 1.0 - b1 - b2 >= eps {
+                            out[slot] = Sample {
+                                face: f,
+                                b: [b1.max(0.0) as f32, b2.max(0.0) as f32],
+                            };
+                            missing -= 1;
+                        }
+                    }
+                    i += 1.0;
+                }
+                j += 1.0;
+            }
+            if missing == 0 {
+                break;
+            }
+        }
+        for &v in &face {
+            for &g in surface.faces_of(v) {
+                if scratch.seen[g as usize] != generation {
+                    scratch.seen[g as usize] = generation;
+                    let d = centroid_distance(g);
+                    if d <= reach2 && faces_the_template(g) {
+                        scratch.heap.push((Reverse(d.to_bits()), g));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The sub-step shift of the template grid at vertex `v` on `level` (see
+/// [`sample_template`]): uniform in [-1/2, 1/2)², seeded.
+fn shift(seed: u64, level: usize, v: u32) -> [f64; 2] {
+    let mut rng = Rng::for_item(seed ^ ((level as u64 + 1) << 40), v as u64);
+    [rng.uniform() - 0.5, rng.uniform() - 0.5]
+}
+
+/// The origin of the template at `v` (the vertex moved by its shift) and its frame.
+fn template_origin(
+    surface: &Surface,
+    v: u32,
+    offset: [f64; 2],
+    axes: [usize; 2],
+    s: f64,
+) -> (Point3<f64>, Vector3<f64>, Vector3<f64>) {
+    let (t1, t2) = frame(&surface.normals[v as usize], axes);
+    (
+        surface.positions[v as usize] + (t1 * offset[0] + t2 * offset[1]) * s,
+        t1,
+        t2,
+    )
+}
+
+/// The values of `field` at a template's samples (0 where missing).
+fn template_values(surface: &Surface, template: &[Sample], field: &[f64], out: &mut [f32]) {
+    for (o, smp) in out.iter_mut().zip(template) {
+        *o = if smp.face == u32::MAX {
+            0.0
+        } else {
+            let face = surface.faces[smp.face as usize];
+            let w = smp.weights();
+            (w[0] * field[face[0] as usize]
+                + w[1] * field[face[1] as usize]
+                + w[2] * field[face[2] as usize]) as f32
+        };
+    }
+}
+
+/// Vertices of `members`, one per cell of a grid of `spacing` (the lowest index in each),
+/// in increasing order.
+fn spread(positions: &[Point3<f64>], members: &[u32], spacing: f64) -> Vec<u32> {
+    let mut cells: std::collections::HashMap<[i64; 3], u32> = Default::default();
+    for &v in members {
+        let p = positions[v as usize];
+        let c = [
+            (p.x / spacing).floor() as i64,
+            (p.y / spacing).floor() as i64,
+            (p.z / spacing).floor() as i64,
+        ];
+        cells.entry(c).or_insert(v);
+    }
+    let mut out: Vec<u32> = cells.into_values().collect();
+    out.sort_unstable();
+    out
+}
+
+/// The input side of one region: its displacement field as example.
+pub(crate) struct Example<'a> {
+    pub surface: &'a Surface<'a>,
+    pub displacement: &'a [f64],
+    /// The region's vertices.
+    pub members: Vec<u32>,
+}
+
+/// The output side of one region.
+pub(crate) struct Output<'a> {
+    pub surface: &'a Surface<'a>,
+    pub members: Vec<u32>,
+    /// Displacement carried over by the natural correspondence (constraint `u`).
+    pub carried: &'a [f64],
+}
+
+/// Figures of one region's synthesis.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RegionSynthesis {
+    /// Template spacing at the finest level (`d = sqrt(2A)`), world units.
+    pub spacing: f64,
+    /// Input neighbourhoods per level.
+    pub exemplars: Vec<usize>,
+    /// Output neighbourhoods per level.
+    pub centres: Vec<usize>,
+    /// EM iterations run per level.
+    pub iterations: Vec<usize>,
+    /// Mean squared distance of each output neighbourhood to its match at the end of the
+    /// finest level, over the mean squared input displacement (0 is a perfect copy).
+    pub relative_energy: f64,
+}
+
+/// Input neighbourhoods of one level: values, PCA projection and index.
+struct Exemplars {
+    dim: usize,
+    values: Vec<f32>,
+    mean: Vec<f32>,
+    basis: Vec<[f32; PCA_DIMENSIONS]>,
+    index: FeatureIndex<PCA_DIMENSIONS>,
+    /// Origin and frame of each exemplar's template, and an index of the origins (for
+    /// coherent candidates).
+    origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)>,
+    places: PointIndex3,
+}
+
+impl Exemplars {
+    fn project(&self, v: &[f32]) -> [f32; PCA_DIMENSIONS] {
+        let mut y = [0f32; PCA_DIMENSIONS];
+        for ((x, m), b) in v.iter().zip(&self.mean).zip(&self.basis) {
+            let c = x - m;
+            for k in 0..PCA_DIMENSIONS {
+                y[k] += c * b[k];
+            }
+        }
+        y
+    }
+
+    fn row(&self, e: usize) -> &[f32] {
+        &self.values[e * self.dim..(e + 1) * self.dim]
+    }
+
+    /// The exemplar nearest to `v` among the PCA candidates and the `coherent` ones, with
+    /// its squared distance.
+    fn best(&self, v: &[f32], candidates: usize, coherent: &[u32]) -> (u32, f64) {
+        let y = self.project(v);
+        let mut best = (0u32, f64::INFINITY);
+        let pca = self.index.k_nearest(&y, candidates);
+        for e in pca.iter().map(|n| n.index).chain(coherent.iter().copied()) {
+            let d: f64 = self
+                .row(e as usize)
+                .iter()
+                .zip(v)
+                .map(|(a, b)| ((a - b) as f64).powi(2))
+                .sum();
+            if d < best.1 || (d == best.1 && e < best.0) {
+                best = (e, d);
+            }
+        }
+        best
+    }
+}
+
+/// Builds the input neighbourhoods of one level.
+#[allow(clippy::too_many_arguments)]
+fn exemplars(
+    example: &Example,
+    field: &[f64],
+    in_region: &[bool],
+    axes: [usize; 2],
+    m: usize,
+    s: f64,
+    cfg: &SynthesisConfig,
+    level: usize,
+) -> Option<Exemplars> {
+    let dim = (2 * m + 1) * (2 * m + 1);
+    let mut centres = spread(example.surface.positions, &example.members, 0.5 * s);
+    if centres.len() > cfg.max_exemplars {
+        let keep = cfg.max_exemplars as f64 / centres.len() as f64;
+        centres.retain(|&v| Rng::for_item(cfg.seed ^ (0x5eed << level), v as u64).uniform() < keep);
+    }
+    // Per template: its values and the fraction of its samples inside the region.
+    let rows: Vec<(Vec<f32>, f64, u32)> = centres
+        .par_iter()
+        .map_init(Scratch::default, |scratch, &c| {
+            let t = sample_template(
+                example.surface,
+                c,
+                shift(cfg.seed ^ 0x1234_5678, level, c),
+                axes,
+                m,
+                s,
+                scratch,
+            );
+            let inside = t
+                .iter()
+                .filter(|x| {
+                    x.face != u32::MAX
+                        && example.surface.faces[x.face as usize]
+                            .iter()
+                            .all(|&v| in_region[v as usize])
+                })
+                .count();
+            let mut v = vec![0f32; dim];
+            template_values(example.surface, &t, field, &mut v);
+            (v, inside as f64 / dim as f64, c)
+        })
+        .collect();
+    // Examples are templates (nearly) inside the region: the fade into the base would
+    // otherwise offer flat neighbourhoods that blurred iterates settle on (the border band
+    // is held by the constraint instead). Thin regions fall back to templates at least
+    // half inside.
+    let inside = rows.iter().filter(|r| r.1 >= 0.9).count();
+    let bound = if inside >= 4 * PCA_DIMENSIONS {
+        0.9
+    } else {
+        0.5
+    };
+    let kept: Vec<(Vec<f32>, f64, u32)> = rows.into_iter().filter(|r| r.1 >= bound).collect();
+    let centres: Vec<u32> = kept.iter().map(|r| r.2).collect();
+    let values: Vec<f32> = kept.into_iter().flat_map(|r| r.0).collect();
+    let count = values.len() / dim;
+    if count < 2 * PCA_DIMENSIONS {
+        return None;
+    }
+    let mut mean = vec![0f64; dim];
+    for e in 0..count {
+        for (k, x) in values[e * dim..(e + 1) * dim].iter().enumerate() {
+            mean[k] += *x as f64;
+        }
+    }
+    for x in &mut mean {
+        *x /= count as f64;
+    }
+    let mut cov = DMatrix::<f64>::zeros(dim, dim);
+    for e in 0..count {
+        let row = &values[e * dim..(e + 1) * dim];
+        for a in 0..dim {
+            let ca = row[a] as f64 - mean[a];
+            for b in a..dim {
+                cov[(a, b)] += ca * (row[b] as f64 - mean[b]);
+            }
+        }
+    }
+    for a in 0..dim {
+        for b in 0..a {
+            cov[(a, b)] = cov[(b, a)];
+        }
+    }
+    let eig = SymmetricEigen::new(cov);
+    let mut order: Vec<usize> = (0..dim).collect();
+    order.sort_by(|&a, &b| {
+        eig.eigenvalues[b]
+            .total_cmp(&eig.eigenvalues[a])
+            .then(a.cmp(&b))
+    });
+    let basis: Vec<[f32; PCA_DIMENSIONS]> = (0..dim)
+        .map(|row| std::array::from_fn(|k| eig.eigenvectors[(row, order[k])] as f32))
+        .collect();
+    let origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)> = centres
+        .iter()
+        .map(|&c| {
+            template_origin(
+                example.surface,
+                c,
+                shift(cfg.seed ^ 0x1234_5678, level, c),
+                axes,
+                s,
+            )
+        })
+        .collect();
+    let places: Vec<Point3<f64>> = origins.iter().map(|o| o.0).collect();
+    let mut ex = Exemplars {
+        dim,
+        values,
+        mean: mean.iter().map(|&x| x as f32).collect(),
+        basis,
+        index: FeatureIndex::build(&[]).ok()?,
+        origins,
+        places: PointIndex3::build(&places).ok()?,
+    };
+    let projected: Vec<[f32; PCA_DIMENSIONS]> = (0..count)
+        .into_par_iter()
+        .map(|e| ex.project(ex.row(e)))
+        .collect();
+    ex.index = FeatureIndex::build(&projected).ok()?;
+    Some(ex)
+}
+
+/// `field` low-passed over the surface at scale `sigma`: one implicit heat step
+/// `(D + σ² K) y = D t`, `K` the graph Laplacian with weights `1/|e|`, `D_i` half the sum
+/// of vertex `i`'s edge lengths (on a regular mesh this is `y − (σ²/2) Δy = t`, a blur of
+/// standard deviation about `σ`).
+fn blur(surface: &Surface, field: &[f64], sigma: f64) -> Result<Vec<f64>, GeotexError> {
+    let n = surface.positions.len();
+    let mut edges: Vec<(u32, u32)> = surface
+        .faces
+        .iter()
+        .flat_map(|f| (0..3).map(move |k| (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    let mut mass = vec![0.0; n];
+    let mut matrix = SymmetricMatrix::new(n);
+    let floor = 1e-6 * surface.mean_edge;
+    let s2 = sigma * sigma;
+    let mut diagonal = vec![0.0; n];
+    for &(a, b) in &edges {
+        let len = (surface.positions[a as usize] - surface.positions[b as usize])
+            .norm()
+            .max(floor);
+        mass[a as usize] += 0.5 * len;
+        mass[b as usize] += 0.5 * len;
+        let w = s2 / len;
+        diagonal[a as usize] += w;
+        diagonal[b as usize] += w;
+        matrix.add(b as usize, a as usize, -w);
+    }
+    let mut rhs = vec![0.0; n];
+    for v in 0..n {
+        // Isolated vertices keep their value.
+        let m = if mass[v] > 0.0 { mass[v] } else { 1.0 };
+        matrix.add(v, v, m + diagonal[v]);
+        rhs[v] = m * field[v];
+    }
+    let factor = matrix.factor("texture synthesis (low-pass)")?;
+    factor.solve(&mut rhs, 1)?;
+    Ok(rhs)
+}
+
+/// Distance along edges from the region's border (members with a non-member neighbour),
+/// through members; `f64::INFINITY` for members the border does not reach.
+fn border_distance(surface: &Surface, members: &[u32], is_member: &[bool]) -> Vec<f64> {
+    let n = surface.positions.len();
+    let mut dist = vec![f64::INFINITY; n];
+    let mut heap: BinaryHeap<(Reverse<u64>, u32)> = BinaryHeap::new();
+    let neighbours = |v: u32| {
+        surface.faces_of(v).iter().flat_map(move |&f| {
+            surface.faces[f as usize]
+                .into_iter()
+                .filter(move |&w| w != v)
+        })
+    };
+    for &v in members {
+        if neighbours(v).any(|w| !is_member[w as usize]) {
+            dist[v as usize] = 0.0;
+            heap.push((Reverse(0f64.to_bits()), v));
+        }
+    }
+    while let Some((Reverse(d), v)) = heap.pop() {
+        let d = f64::from_bits(d);
+        if d > dist[v as usize] {
+            continue;
+        }
+        for w in neighbours(v) {
+            if !is_member[w as usize] {
+                continue;
+            }
+            let nd = d + (surface.positions[v as usize] - surface.positions[w as usize]).norm();
+            if nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                heap.push((Reverse(nd.to_bits()), w));
+            }
+        }
+    }
+    dist
+}
+
+/// Mean triangle area of the faces with all corners in `members`.
+fn mean_area(surface: &Surface, is_member: &[bool]) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for f in surface.faces {
+        if f.iter().all(|&v| is_member[v as usize]) {
+            let [a, b, c] = f.map(|v| surface.positions[v as usize]);
+            sum += 0.5 * (b - a).cross(&(c - a)).norm();
+            count += 1;
+        }
+    }
+    if count == 0 { 0.0 } else { sum / count as f64 }
+}
+
+/// The two world axes of a region's template frames: the one least aligned with its
+/// normals first (area-weighted over members).
+fn region_axes(surface: &Surface, members: &[u32]) -> [usize; 2] {
+    let mut align = [0.0f64; 3];
+    for &v in members {
+        let n = surface.normals[v as usize];
+        for a in 0..3 {
+            align[a] += n[a].abs();
+        }
+    }
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| align[a].total_cmp(&align[b]).then(a.cmp(&b)));
+    [order[0], order[1]]
+}
+
+/// Synthesises the displacement of one region (module docs): returns the displacement of
+/// every vertex of the target surface (`carried` outside the region) and the figures.
+pub(crate) fn synthesise_region(
+    example: &Example,
+    target: &Output,
+    cfg: &SynthesisConfig,
+    progress: &dyn Fn(usize),
+) -> Result<(Vec<f64>, RegionSynthesis), GeotexError> {
+    cfg.check()?;
+    let n_out = target.surface.positions.len();
+    let mut x: Vec<f64> = target.carried.to_vec();
+    let mut in_example = vec![false; example.surface.positions.len()];
+    for &v in &example.members {
+        in_example[v as usize] = true;
+    }
+    let mut is_member = vec![false; n_out];
+    for &v in &target.members {
+        is_member[v as usize] = true;
+    }
+    let mut report = RegionSynthesis::default();
+    let area = mean_area(example.surface, &in_example);
+    if area <= 0.0 || target.members.is_empty() {
+        return Ok((x, report));
+    }
+    let d = (2.0 * area).sqrt();
+    report.spacing = d;
+    let axes = region_axes(example.surface, &example.members);
+    let m = cfg.half_width;
+    let dim = (2 * m + 1) * (2 * m + 1);
+
+    // Unknowns: the region's vertices.
+    let mut unknown = vec![u32::MAX; n_out];
+    for (k, &v) in target.members.iter().enumerate() {
+        unknown[v as usize] = k as u32;
+    }
+    let nu = target.members.len();
+    let border = border_distance(target.surface, &target.members, &is_member);
+    let band = cfg.boundary_band * d;
+    let constraint: Vec<f64> = target
+        .members
+        .iter()
+        .map(|&v| {
+            let t = (border[v as usize] / band).clamp(0.0, 1.0);
+            1.0 - t * t * (3.0 - 2.0 * t)
+        })
+        .collect();
+
+    let mut final_energy = 0.0;
+    for level in 0..cfg.levels {
+        let s = d * (1u64 << (cfg.levels - 1 - level)) as f64;
+        // Coarse levels see the example low-passed to their sampling (a pyramid level of
+        // Kwatra's multiresolution synthesis): sampled raw, a thread finer than two
+        // template steps would alias into a wrong, coarser pattern.
+        let blurred;
+        let field = if s > d {
+            blurred = blur(example.surface, example.displacement, 0.5 * s)?;
+            &blurred
+        } else {
+            example.displacement
+        };
+        let Some(ex) = exemplars(example, field, &in_example, axes, m, s, cfg, level) else {
+            // Too few complete input neighbourhoods at this size: skip the level.
+            report.exemplars.push(0);
+            report.centres.push(0);
+            report.iterations.push(0);
+            continue;
+        };
+        report.exemplars.push(ex.values.len() / dim);
+        let centres = spread(
+            target.surface.positions,
+            &target.members,
+            0.5 * m as f64 * s,
+        );
+        let templates: Vec<Vec<Sample>> = centres
+            .par_iter()
+            .map_init(Scratch::default, |scratch, &c| {
+                sample_template(
+                    target.surface,
+                    c,
+                    shift(cfg.seed, level, c),
+                    axes,
+                    m,
+                    s,
+                    scratch,
+                )
+            })
+            .collect();
+        report.centres.push(centres.len());
+        // Neighbouring centres (for coherent candidates, Ashikhmin 2001 / Tong et al.
+        // 2002's k-coherence): a neighbour q matched to input neighbourhood e suggests, for
+        // centre p, the input neighbourhood at e's place shifted by p − q in the frames.
+        let out_origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)> = centres
+            .iter()
+            .map(|&c| template_origin(target.surface, c, shift(cfg.seed, level, c), axes, s))
+            .collect();
+        let centre_points: Vec<Point3<f64>> = out_origins.iter().map(|o| o.0).collect();
+        let centre_index = PointIndex3::build(&centre_points).map_err(GeotexError::Index)?;
+        let neighbours: Vec<Vec<u32>> = centre_points
+            .par_iter()
+            .map(|p| {
+                centre_index
+                    .k_nearest_within(p, 9, 2.0 * m as f64 * s)
+                    .into_iter()
+                    .map(|n| n.index)
+                    .filter(|&q| centre_points[q as usize] != *p)
+                    .collect()
+            })
+            .collect();
+
+        // The normal matrix: Σ_p W_pᵀ W_p over the unknowns, accumulated per face.
+        let faces = target.surface.faces;
+        let mut per_face = vec![[0.0f64; 6]; faces.len()];
+        for t in &templates {
+            for smp in t.iter().filter(|s| s.face != u32::MAX) {
+                let w = smp.weights();
+                let acc = &mut per_face[smp.face as usize];
+                acc[0] += w[0] * w[0];
+                acc[1] += w[1] * w[1];
+                acc[2] += w[2] * w[2];
+                acc[3] += w[0] * w[1];
+                acc[4] += w[0] * w[2];
+                acc[5] += w[1] * w[2];
+            }
+        }
+        let mut diagonal = vec![0.0; nu];
+        let mut matrix = SymmetricMatrix::new(nu);
+        for (f, acc) in per_face.iter().enumerate() {
+            if acc[0] + acc[1] + acc[2] == 0.0 {
+                continue;
+            }
+            let ids = faces[f].map(|v| unknown[v as usize]);
+            let pairs = [
+                (0, 0, 0),
+                (1, 1, 1),
+                (2, 2, 2),
+                (0, 1, 3),
+                (0, 2, 4),
+                (1, 2, 5),
+            ];
+            for (a, b, k) in pairs {
+                let (ia, ib) = (ids[a], ids[b]);
+                if ia == u32::MAX || ib == u32::MAX {
+                    continue;
+                }
+                matrix.add(ia as usize, ib as usize, acc[k]);
+                if a == b {
+                    diagonal[ia as usize] += acc[k];
+                }
+            }
+        }
+        let covered: Vec<f64> = diagonal.iter().copied().filter(|&x| x > 0.0).collect();
+        let mean_weight = if covered.is_empty() {
+            1.0
+        } else {
+            covered.iter().sum::<f64>() / covered.len() as f64
+        };
+        let mu = cfg.constraint_weight * mean_weight;
+        let eps = cfg.damping * mean_weight;
+        for (k, c) in constraint.iter().enumerate() {
+            matrix.add(k, k, mu * c + eps);
+        }
+        let factor = matrix.factor("texture synthesis")?;
+
+        let mut matches: Vec<u32> = vec![u32::MAX; templates.len()];
+        let mut iterations = 0;
+        for _ in 0..cfg.iterations {
+            iterations += 1;
+            // Matching step: nearest input neighbourhood of every output neighbourhood; the
+            // very first one (random start) a random input neighbourhood per centre, so
+            // that the first least-squares step pastes real texture patches at random.
+            let random = cfg.random_start && level == 0 && iterations == 1;
+            let count = ex.values.len() / dim;
+            let found: Vec<(u32, f64)> = (0..templates.len())
+                .into_par_iter()
+                .map_init(
+                    || (vec![0f32; dim], Vec::new()),
+                    |(buf, coherent), k| {
+                        if random {
+                            let pick = Rng::for_item(cfg.seed, centres[k] as u64).below(count);
+                            return (pick as u32, f64::INFINITY);
+                        }
+                        template_values(target.surface, &templates[k], &x, buf);
+                        coherent.clear();
+                        for &q in &neighbours[k] {
+                            let e = matches[q as usize];
+                            if e == u32::MAX {
+                                continue;
+                            }
+                            let offset = centre_points[k] - centre_points[q as usize];
+                            let (_, a, b) = out_origins[q as usize];
+                            let (origin, ta, tb) = ex.origins[e as usize];
+                            let place = origin + ta * offset.dot(&a) + tb * offset.dot(&b);
+                            if let Some(n) = ex.places.nearest(&place) {
+                                coherent.push(n.index);
+                            }
+                        }
+                        ex.best(buf, cfg.candidates, coherent)
+                    },
+                )
+                .collect();
+            let changed = found
+                .iter()
+                .zip(&matches)
+                .filter(|(f, m)| f.0 != **m)
+                .count();
+            if !random {
+                final_energy =
+                    found.iter().map(|f| f.1).sum::<f64>() / (found.len().max(1) * dim) as f64;
+            }
+            for (m, f) in matches.iter_mut().zip(&found) {
+                *m = f.0;
+            }
+            // Least-squares step.
+            let mut rhs = vec![0.0; nu];
+            for (t, &e) in templates.iter().zip(&matches) {
+                let z = ex.row(e as usize);
+                for (smp, &zk) in t.iter().zip(z) {
+                    if smp.face == u32::MAX {
+                        continue;
+                    }
+                    let face = faces[smp.face as usize];
+                    let w = smp.weights();
+                    let mut target_value = zk as f64;
+                    for c in 0..3 {
+                        if unknown[face[c] as usize] == u32::MAX {
+                            target_value -= w[c] * x[face[c] as usize];
+                        }
+                    }
+                    for c in 0..3 {
+                        let k = unknown[face[c] as usize];
+                        if k != u32::MAX {
+                            rhs[k as usize] += w[c] * target_value;
+                        }
+                    }
+                }
+            }
+            for (k, &v) in target.members.iter().enumerate() {
+                rhs[k] += mu * constraint[k] * target.carried[v as usize] + eps * x[v as usize];
+            }
+            factor.solve(&mut rhs, 1)?;
+            for (k, &v) in target.members.iter().enumerate() {
+                x[v as usize] = rhs[k];
+            }
+            progress(1);
+            if changed * 200 < templates.len() {
+                break;
+            }
+        }
+        report.iterations.push(iterations);
+    }
+    let example_power = example
+        .members
+        .iter()
+        .map(|&v| example.displacement[v as usize].powi(2))
+        .sum::<f64>()
+        / example.members.len().max(1) as f64;
+    report.relative_energy = if example_power > 0.0 {
+        final_energy / example_power
+    } else {
+        0.0
+    };
+    Ok((x, report))
+}

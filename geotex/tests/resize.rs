@@ -1,0 +1,217 @@
+//! The whole chain on the synthetic models of `fresco_datasets::geometric_texture`, judged
+//! against the generator's ground truth (issue 17's "must show"): segmentation agreement,
+//! feature sizes after a 2x stretch with each method, and the bad inputs.
+
+use fresco_core::NoProgress;
+use fresco_core::nalgebra::Point3;
+use fresco_datasets::geometric_texture as gt;
+use fresco_geotex::curvature::{CurvatureConfig, principal_curvatures};
+use fresco_geotex::segmentation::{SegmentationConfig, segment};
+use fresco_geotex::{GeotexError, Method, ResizeConfig, Target, graph, resize};
+
+fn config(method: Method) -> ResizeConfig {
+    ResizeConfig {
+        method,
+        ..ResizeConfig::default()
+    }
+}
+
+/// The thread's pitch measured on the output (z period of the displacement of region 1).
+fn output_pitch(out: &fresco_geotex::Resized) -> f64 {
+    let m = out.report.measurement.as_ref().expect("measured");
+    m.output.regions[0].period[2].expect("the output has a period along z")
+}
+
+#[test]
+fn segmentation_agrees_with_the_ground_truth_on_nine_tenths_of_the_vertices() {
+    for model in gt::all_models() {
+        let mesh = &model.mesh;
+        let (_, g) = graph::prepare(mesh).unwrap();
+        let normals = mesh.vertex_normals();
+        let cc = CurvatureConfig::default();
+        let curv = principal_curvatures(
+            mesh,
+            &normals,
+            cc.radius_in_edges * g.mean_edge,
+            cc.columns_per_radius,
+        );
+        let seg = segment(mesh, &g, &curv, &SegmentationConfig::default());
+        let agree = seg
+            .labels
+            .iter()
+            .zip(&model.labels)
+            .filter(|(a, b)| (**a != 0) == (**b != 0))
+            .count() as f64
+            / mesh.positions.len() as f64;
+        eprintln!("{}: agreement {agree:.4}", model.name);
+        assert!(agree >= 0.9, "{}: {agree}", model.name);
+    }
+}
+
+#[test]
+fn thread_pitch_is_kept_by_texture_and_doubled_by_uniform() {
+    let cfg = gt::ThreadedCylinderConfig::default();
+    let model = gt::threaded_cylinder(&cfg);
+    let truth = match model.textures[0].kind {
+        gt::TextureKind::Thread { pitch, .. } => pitch,
+        _ => unreachable!(),
+    };
+    let target = Target::Scale([1.0, 1.0, 2.0]);
+    let textured = resize(&model.mesh, &target, &config(Method::Texture), &NoProgress).unwrap();
+    let uniform = resize(&model.mesh, &target, &config(Method::Uniform), &NoProgress).unwrap();
+    let (pt, pu) = (output_pitch(&textured), output_pitch(&uniform));
+    eprintln!("pitch: truth {truth}, texture {pt}, uniform {pu}");
+    // The issue's bound: within 5% with the texture method, about +100% with uniform.
+    assert!(
+        (pt / truth - 1.0).abs() < 0.05,
+        "texture pitch {pt} vs {truth}"
+    );
+    assert!(
+        (pu / truth - 2.0).abs() < 0.05,
+        "uniform pitch {pu} vs {truth}"
+    );
+    // The result reaches the target box (the texture adds its crests to the base's box).
+    let size = textured.report.output_size;
+    let input = textured.report.input_size;
+    assert!(
+        (size[2] / input[2] - 2.0).abs() < 0.02,
+        "{size:?} {input:?}"
+    );
+    assert!(
+        (size[0] / input[0] - 1.0).abs() < 0.02,
+        "{size:?} {input:?}"
+    );
+    // Base-shape error: the faired output against the faired input resized by the same
+    // deformation, within a tenth of the thread's depth (RMS).
+    let depth = match model.textures[0].kind {
+        gt::TextureKind::Thread { depth, .. } => depth,
+        _ => unreachable!(),
+    };
+    let err = textured.report.measurement.as_ref().unwrap().base_error;
+    assert!(err.rms < 0.1 * depth, "{err:?}");
+}
+
+#[test]
+fn bad_targets_are_refused_with_the_axis_named() {
+    let mesh = fresco_datasets::shapes::icosphere(1.0, 2);
+    for (scale, axis) in [
+        ([0.0, 1.0, 1.0], 'x'),
+        ([1.0, -2.0, 1.0], 'y'),
+        ([1.0, 1.0, f64::NAN], 'z'),
+    ] {
+        let e = resize(
+            &mesh,
+            &Target::Scale(scale),
+            &ResizeConfig::default(),
+            &NoProgress,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, GeotexError::Target { axis: a, .. } if a == axis),
+            "{e}"
+        );
+        assert!(e.to_string().contains(&format!("along {axis}")), "{e}");
+    }
+}
+
+#[test]
+fn a_mesh_without_texture_is_resized_uniformly_with_a_notice() {
+    let mesh = fresco_datasets::shapes::icosphere(1.0, 4);
+    let out = resize(
+        &mesh,
+        &Target::Scale([2.0, 1.0, 1.0]),
+        &ResizeConfig::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    assert!(out.report.regions.is_empty());
+    assert!(out.report.notice.is_some());
+    for (p, q) in mesh.positions.iter().zip(&out.mesh.positions) {
+        assert!((Point3::new(2.0 * p.x, p.y, p.z) - q).norm() < 1e-9);
+    }
+}
+
+#[test]
+fn an_open_textured_mesh_is_resized_with_its_boundary_following_the_base() {
+    // The threaded cylinder with its caps cut off: an open tube.
+    let model = gt::threaded_cylinder(&gt::ThreadedCylinderConfig::default());
+    let bbox = model.mesh.bounding_box().unwrap();
+    let keep = |p: &Point3<f64>| p.z > bbox.min.z + 1e-9 && p.z < bbox.max.z - 1e-9;
+    let mut mesh = model.mesh.clone();
+    mesh.faces
+        .retain(|f| f.iter().any(|&v| keep(&model.mesh.positions[v as usize])));
+    let out = resize(
+        &mesh,
+        &Target::Scale([1.0, 1.0, 2.0]),
+        &config(Method::Texture),
+        &NoProgress,
+    )
+    .unwrap();
+    assert!(!out.report.regions.is_empty());
+    assert!(
+        out.mesh
+            .positions
+            .iter()
+            .all(|p| p.coords.iter().all(|c| c.is_finite()))
+    );
+    let size = out.report.output_size;
+    assert!(
+        (size[2] / out.report.input_size[2] - 2.0).abs() < 0.02,
+        "{size:?}"
+    );
+}
+
+#[test]
+fn bump_radius_is_kept_by_texture_and_doubled_by_uniform_along_the_stretch() {
+    let cfg = gt::BumpyBoxConfig::default();
+    let model = gt::bumpy_box(&cfg);
+    let target = Target::Scale([2.0, 1.0, 1.0]);
+    let textured = resize(&model.mesh, &target, &config(Method::Texture), &NoProgress).unwrap();
+    let uniform = resize(&model.mesh, &target, &config(Method::Uniform), &NoProgress).unwrap();
+    let t = textured.report.measurement.as_ref().unwrap();
+    let u = uniform.report.measurement.as_ref().unwrap();
+    assert_eq!(t.input.regions.len(), 2);
+    // Each segmented region is one of the generator's two bump sizes: its measured radius
+    // (2 sigma of the raised part, about 0.6 of the support radius) says which.
+    let mut truths = [cfg.small_radius, cfg.big_radius];
+    truths.sort_by(f64::total_cmp);
+    for k in 0..2 {
+        let before = &t.input.regions[k];
+        let after = &t.output.regions[k];
+        let uni = &u.output.regions[k];
+        let r_in = before.element_radius[0].unwrap();
+        let truth = *truths
+            .iter()
+            .min_by(|a, b| {
+                (r_in / **a - 0.6)
+                    .abs()
+                    .total_cmp(&(r_in / **b - 0.6).abs())
+            })
+            .unwrap();
+        assert!(
+            r_in > 0.4 * truth && r_in < 0.8 * truth,
+            "{r_in} vs {truth}"
+        );
+        for a in 0..2 {
+            let (i, o) = (
+                before.element_radius[a].unwrap(),
+                after.element_radius[a].unwrap(),
+            );
+            eprintln!(
+                "region {k} axis {a}: radius {i} -> texture {o}, uniform {:?}",
+                uni.element_radius[a]
+            );
+            assert!(
+                (o / i - 1.0).abs() < 0.05,
+                "region {k} axis {a}: {i} -> {o}"
+            );
+        }
+        // Uniform scaling doubles the radius along x and keeps it along y.
+        let ux = uni.element_radius[0].unwrap() / before.element_radius[0].unwrap();
+        assert!((ux - 2.0).abs() < 0.1, "uniform x ratio {ux}");
+        assert!(
+            after.elements > before.elements,
+            "the stretched patch holds more bumps"
+        );
+    }
+}
