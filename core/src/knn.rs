@@ -524,14 +524,14 @@ mod tests {
 
     #[test]
     fn feature_index_matches_brute_force_in_eight_dimensions() {
-        let mut r = Rng(11);
+        let mut r = Rng::new(11);
         let features: Vec<[f32; 8]> = (0..3000)
-            .map(|_| std::array::from_fn(|_| r.next() as f32))
+            .map(|_| std::array::from_fn(|_| r.uniform() as f32))
             .collect();
         let index = FeatureIndex::build(&features).unwrap();
         assert_eq!(index.len(), 3000);
         for _ in 0..100 {
-            let q: [f32; 8] = std::array::from_fn(|_| r.next() as f32);
+            let q: [f32; 8] = std::array::from_fn(|_| r.uniform() as f32);
             let got = index.k_nearest(&q, 5);
             let mut want: Vec<f64> = features
                 .iter()
