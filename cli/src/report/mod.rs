@@ -138,6 +138,30 @@ fn key_figures(st: &crate::run::StageOutcome) -> String {
                 parts.push(format!("reprojection {e:.3} px"));
             }
         }
+        "dense" => {
+            if let Some(n) = v.get("views").and_then(|x| x.as_array()) {
+                parts.push(format!("depth maps {}", n.len()));
+            }
+            if let Some(n) = v.get("fusion").and_then(|f| f.get("points")) {
+                parts.push(format!("fused points {n}"));
+            }
+        }
+        "texture" => {
+            add("faces", "faces");
+            add("views", "views_used");
+            add("atlas", "atlas_size");
+            if let Some(c) = v.get("coverage").and_then(|x| x.as_f64()) {
+                parts.push(format!("coverage {:.1}%", 100.0 * c));
+            }
+        }
+        "holdout" => {
+            if let (Some(a), Some(b)) = (
+                v.get("mean_psnr").and_then(|x| x.as_f64()),
+                v.get("mean_psnr_gain_fitted").and_then(|x| x.as_f64()),
+            ) {
+                parts.push(format!("PSNR {a:.2} dB, gain-fitted {b:.2} dB"));
+            }
+        }
         _ => {
             add("faces", "faces");
             if let Some(c) = v.get("report").and_then(|r| r.get("charts")) {
@@ -256,6 +280,38 @@ pub fn viewer_page(title: &str, url: &str) -> String {
 }
 
 /// Writes `<ws>/report.html` (atomically) and returns its path.
+/// The held-out photos beside the model rendered into their cameras, with the figures.
+fn held_out_section(out: &mut String, s: &RunSummary) {
+    let Some(h) = &s.held_out_comparison else {
+        return;
+    };
+    out.push_str("<h2>Held-out photos</h2>");
+    let _ = write!(
+        out,
+        "<p>Photos kept out of dense and texture; the model rendered into their cameras. Mean PSNR {:.2} dB, after a per-channel gain fitted to the photo {:.2} dB (SSIM {:.3}).</p>",
+        h["mean_psnr"].as_f64().unwrap_or(f64::NAN),
+        h["mean_psnr_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+        h["mean_ssim_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+    );
+    for v in h["views"].as_array().into_iter().flatten() {
+        let Some(path) = v["picture"].as_str() else {
+            continue;
+        };
+        let caption = format!(
+            "{}: photo | model | 4x difference (grey: not compared). PSNR {:.2} dB, gain-fitted {:.2} dB, SSIM {:.3}, over {} pixels",
+            v["name"].as_str().unwrap_or("?"),
+            v["psnr"].as_f64().unwrap_or(f64::NAN),
+            v["psnr_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+            v["ssim_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+            v["pixels"],
+        );
+        attempt(out, "held-out picture", |o| {
+            figure(o, &figures::picture_file(Path::new(path), 1040, caption)?);
+            Ok(())
+        });
+    }
+}
+
 pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     let ws = &plan.ws;
     let mut out = String::new();
@@ -343,8 +399,20 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     if !depth.is_empty() {
         out.push_str("<h2>Depth maps</h2>");
         attempt(&mut out, "depth map", |o| {
-            let p = figures::picture_file(&depth[0], 640, format!("{}", depth[0].display()))?;
-            figure(o, &p);
+            // Three depth maps spread over the photos.
+            let step = (depth.len() / 3).max(1);
+            for d in depth.iter().step_by(step).take(3) {
+                let name = d.file_name().map(|n| n.to_string_lossy().to_string());
+                let p = figures::picture_file(
+                    d,
+                    400,
+                    format!(
+                        "depth map of {} (near: warm, far: cool)",
+                        name.unwrap_or_default()
+                    ),
+                )?;
+                figure(o, &p);
+            }
             let conf = pictures_under(&ws.join("dense"), "conf");
             if let Some(c) = conf.first() {
                 figure(
@@ -396,7 +464,7 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
         });
     }
 
-    let atlases = pictures_under(&ws.join("texture"), "");
+    let atlases = pictures_under(&ws.join("texture"), "atlas");
     if !atlases.is_empty() {
         out.push_str("<h2>Texture atlas</h2>");
         attempt(&mut out, "atlas", |o| {
@@ -410,12 +478,11 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
         });
     }
 
+    held_out_section(&mut out, s);
+
     let glb = ws.join("model.glb");
     if glb.is_file() {
         out.push_str("<h2>Model</h2>");
-        if let Some(note) = stage_summary(s, "export").and_then(|st| st.stand_in.clone()) {
-            let _ = write!(out, r#"<p class="warn">Stand-in: {}</p>"#, escape(&note));
-        }
         let size = std::fs::metadata(&glb).map(|m| m.len()).unwrap_or(0);
         let source = if size <= MAX_EMBEDDED_GLB {
             GlbSource::Embedded(
