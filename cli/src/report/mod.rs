@@ -37,6 +37,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .error { background: #fde2e2; border-left: 4px solid #d33; padding: 0.4em 0.8em; }
 figure { margin: 0.8em 0; } figcaption { color: #555; font-size: 0.9em; }
 img.pic { max-width: 100%; border: 1px solid #ddd; }
+.row figure { display: inline-block; width: 32%; margin-right: 1%; vertical-align: top; }
 .thumbs img { height: 72px; margin: 2px; border: 1px solid #ddd; }
 .status-ran { color: #186a1d; } .status-skipped { color: #555; } .status-failed { color: #b00; }
 #viewer { width: 100%; height: 520px; background: #17171c; display: block; border-radius: 4px; }
@@ -279,7 +280,6 @@ pub fn viewer_page(title: &str, url: &str) -> String {
     out
 }
 
-/// Writes `<ws>/report.html` (atomically) and returns its path.
 /// The held-out photos beside the model rendered into their cameras, with the figures.
 fn held_out_section(out: &mut String, s: &RunSummary) {
     let Some(h) = &s.held_out_comparison else {
@@ -312,6 +312,7 @@ fn held_out_section(out: &mut String, s: &RunSummary) {
     }
 }
 
+/// Writes `<ws>/report.html` (atomically) and returns its path.
 pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     let ws = &plan.ws;
     let mut out = String::new();
@@ -399,20 +400,22 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     if !depth.is_empty() {
         out.push_str("<h2>Depth maps</h2>");
         attempt(&mut out, "depth map", |o| {
-            // Three depth maps spread over the photos.
+            // Three depth maps spread over the photos, side by side.
+            o.push_str(r#"<div class="row">"#);
             let step = (depth.len() / 3).max(1);
             for d in depth.iter().step_by(step).take(3) {
-                let name = d.file_name().map(|n| n.to_string_lossy().to_string());
-                let p = figures::picture_file(
-                    d,
-                    400,
-                    format!(
-                        "depth map of {} (near: warm, far: cool)",
-                        name.unwrap_or_default()
-                    ),
-                )?;
+                let name = d
+                    .file_name()
+                    .map(|n| n.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                let name = name
+                    .trim_end_matches(".png")
+                    .trim_end_matches(".photometric");
+                let p =
+                    figures::picture_file(d, 400, format!("depth map of {name} (false colour)"))?;
                 figure(o, &p);
             }
+            o.push_str("</div>");
             let conf = pictures_under(&ws.join("dense"), "conf");
             if let Some(c) = conf.first() {
                 figure(
