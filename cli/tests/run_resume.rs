@@ -15,13 +15,17 @@ use std::process::Stdio;
 
 use common::*;
 
-/// Every output of a workspace (stage records, summary and report left out: they hold times).
+/// Every output of a workspace (stage records, summaries and report left out: they hold
+/// times).
 fn outputs(ws: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
     snapshot(ws)
         .into_iter()
         .filter(|(p, _)| {
             let s = p.to_string_lossy();
-            !(s.starts_with("stages") || s == "summary.json" || s == "report.html")
+            !(s.starts_with("stages")
+                || s == "summary.json"
+                || s == "report.html"
+                || s == "dense/summary.json")
         })
         .collect()
 }

@@ -103,6 +103,7 @@ fn synthetic_photos_to_a_valid_textured_glb_that_reproduces_a_held_out_photo() {
 /// How far above the flat-colour anchor the texture must be, dB. The generator's albedo is a
 /// high-contrast pattern; a texture that put the photos' colours in the wrong places (a
 /// misregistered atlas, swapped charts, a wrong camera) does no better than the flat colour,
-/// while the right one removes most of the pattern's variance: 6 dB is a quarter of the
-/// flat colour's squared error.
-const FLOOR_ABOVE_FLAT_DB: f64 = 6.0;
+/// while the right one removes most of the pattern's variance: 5 dB means the model leaves
+/// less than a third of the flat colour's squared error (measured: 21.2 dB against 14.4, at
+/// draft settings on 320x240 photos, where the mesh's silhouette errors dominate).
+const FLOOR_ABOVE_FLAT_DB: f64 = 5.0;
