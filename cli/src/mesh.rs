@@ -132,8 +132,7 @@ fn cameras(args: &MeshArgs) -> anyhow::Result<Vec<(Camera, CamFromWorld)>> {
             }
         }
     };
-    let rec = colmap::read_model(&dir)
-        .with_context(|| format!("reading the cameras of {}", dir.display()))?;
+    let rec = colmap::read_model(&dir).context("reading the cameras")?;
     Ok(rec
         .images
         .values()

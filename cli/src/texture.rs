@@ -105,8 +105,7 @@ pub fn run(args: TextureArgs, ctx: &crate::Context) -> anyhow::Result<serde_json
                 bail!("workspace {} is not a folder", ws.display());
             }
             let sparse = ws.join("sparse").join("0");
-            let rec = fresco_core::colmap::read_model(&sparse)
-                .with_context(|| format!("reading the cameras of {}", sparse.display()))?;
+            let rec = fresco_core::colmap::read_model(&sparse).context("reading the cameras")?;
             let mesh = match &args.mesh {
                 Some(m) => m.clone(),
                 None if ws.join("charts.ply").is_file() => ws.join("charts.ply"),

@@ -140,6 +140,25 @@ fn failure_case(verb: &str, dir: &Path) -> Option<Vec<String>> {
             "--views".into(),
             "0".into(),
         ],
+        // A folder with no photo.
+        "run" => vec!["run".into(), p("empty"), "-o".into(), p("out")],
+        // A workspace without images.json or a sparse model.
+        "dense" => vec!["dense".into(), p("ws")],
+        "texture" => vec!["texture".into(), p("ws")],
+        // A model that does not exist (fails before any server starts).
+        "view" => vec!["view".into(), p("missing.glb")],
+        // A scene file that does not exist.
+        "sprites" => {
+            identical_points(&dir.join("points.ply"), 3);
+            vec![
+                "sprites".into(),
+                "render".into(),
+                p("points.ply"),
+                p("missing.json"),
+                "-o".into(),
+                p("out.png"),
+            ]
+        }
         _ => return None,
     };
     Some(args)

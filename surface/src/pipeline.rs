@@ -50,7 +50,7 @@ pub struct MeshConfig {
     /// Face budget, >= 1; `None` keeps every face. Default: `Some(200_000)`.
     pub target_faces: Option<usize>,
     /// The cameras (intrinsics and pose) the points were photographed from; when given, the
-    /// mesh is oriented to face them (step 7). Default none.
+    /// mesh is oriented to face them (step 7). Default: `[]`.
     pub cameras: Vec<(Camera, CamFromWorld)>,
 }
 
@@ -261,7 +261,9 @@ pub fn mesh_from_points(
     let t = Instant::now();
     if !cfg.cameras.is_empty() {
         progress.begin("orientation", 0);
-        report.orientation = Some(face_the_cameras(&mut mesh, &cfg.cameras).map_err(MeshFromPointsError::Orientation)?);
+        report.orientation = Some(
+            face_the_cameras(&mut mesh, &cfg.cameras).map_err(MeshFromPointsError::Orientation)?,
+        );
         progress.end();
     }
     report.seconds_orientation = t.elapsed().as_secs_f64();
