@@ -1,5 +1,39 @@
 //! fresco-core: the vocabulary every fresco stage shares.
 //!
+//! Entry points: [`Mesh`] and [`Topology`], [`Camera`] and the poses ([`CamFromWorld`],
+//! [`WorldFromCam`]), [`Reconstruction`], the file formats ([`ply::read_mesh`],
+//! [`ply::write_mesh`], [`colmap`], [`obj`], [`gltf`]), [`raster::visibility`] and
+//! [`raster::render`], [`knn`], [`Rng`], [`Progress`], and the errors [`FormatError`] and
+//! [`ConfigError`].
+//!
+//! ```
+//! use fresco_core::nalgebra::Point3;
+//! use fresco_core::ply::{PlyFormat, read_mesh, write_mesh};
+//! use fresco_core::{Mesh, Rng, Topology};
+//!
+//! // A tetrahedron: a closed manifold with Euler characteristic 2.
+//! let p = |x, y, z| Point3::new(x, y, z);
+//! let mesh = Mesh::from_triangles(
+//!     vec![p(0., 0., 0.), p(1., 0., 0.), p(0., 1., 0.), p(0., 0., 1.)],
+//!     vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+//! );
+//! let topology = Topology::build(&mesh)?;
+//! assert!(topology.is_closed_manifold());
+//! assert_eq!(topology.euler_characteristic(), 2);
+//!
+//! // Written atomically, read back exactly (positions as doubles).
+//! let dir = tempfile::tempdir()?;
+//! let path = dir.path().join("tetrahedron.ply");
+//! write_mesh(&path, &mesh, PlyFormat::BinaryLittleEndian)?;
+//! assert_eq!(read_mesh(&path)?.positions, mesh.positions);
+//!
+//! // The one seeded generator: the same seed gives the same draws.
+//! assert_eq!(Rng::new(7).uniform(), Rng::new(7).uniform());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Modules:
+//!
 //! - [`Mesh`] (`mesh.rs`): indexed triangles with optional per-vertex normals and colours,
 //!   per-corner UVs (seams allowed) and face groups; `Topology` (`topology.rs`): adjacency,
 //!   connected components, boundary loops, Euler characteristic and genus.
@@ -12,6 +46,7 @@
 //! - `knn.rs`: the one k-nearest-neighbour index (kiddo) every stage uses.
 //! - File formats: `ply.rs` (ascii/binary, streaming), `obj.rs`, `colmap.rs` (text and binary
 //!   models), `middlebury.rs` (`*_par.txt`), `gltf.rs` (GLB writer), `photo.rs` (image loading).
+//! - `closest_point.rs`: the point of a triangle closest to a query point (with barycentrics).
 //! - `ordered_sum.rs`: parallel sums with the same bits whatever the thread count.
 //! - [`Rng`] (`rng.rs`): the one seeded random generator (SplitMix64); every stage draws from it.
 //! - [`Progress`] (`progress.rs`): how long work reports progress without drawing anything.
@@ -22,6 +57,7 @@
 
 pub mod atomic_file;
 pub mod camera;
+pub mod closest_point;
 pub mod colmap;
 pub mod config;
 pub mod error;

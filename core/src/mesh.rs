@@ -193,6 +193,18 @@ impl Mesh {
         self.face_areas().iter().sum()
     }
 
+    /// Signed enclosed volume by the divergence theorem (sum over faces of `a . (b x c) / 6`):
+    /// positive when a closed mesh's faces point outward. Summed in face order.
+    pub fn signed_volume(&self) -> f64 {
+        self.faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|v| self.positions[v as usize].coords);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
     /// Area-weighted vertex normals: each vertex gets the normalised sum of the
     /// (unnormalised, so area-weighted) cross products of its faces. Vertices without a
     /// non-degenerate face get a zero vector. Requires valid indices (see [`Mesh::validate`]).

@@ -16,6 +16,8 @@
 use fresco_core::nalgebra::{Point3, Vector3};
 use fresco_core::rng::splitmix64;
 
+use crate::hash_chain::HashChain;
+
 /// A seeded procedural albedo: linear interpolation of 8-bit sRGB-encoded colours, values in [0, 1].
 #[derive(Clone, Debug)]
 pub struct Albedo {
@@ -34,11 +36,8 @@ pub const CONTRAST_PIVOT: f64 = 0.45;
 
 impl Albedo {
     pub fn new(seed: u64, scale: f64) -> Albedo {
-        let mut state = seed ^ 0x5EED_A1BE_D0C0_FFEE;
-        let mut next = || {
-            state = splitmix64(state);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut draws = HashChain::starting_at(seed ^ 0x5EED_A1BE_D0C0_FFEE);
+        let mut next = || draws.unit();
         let mut palette = [[0.0; 3]; 8];
         for (i, c) in palette.iter_mut().enumerate() {
             // Hues spread around the wheel with jitter; saturated and bright so that the

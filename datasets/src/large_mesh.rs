@@ -290,14 +290,7 @@ mod tests {
         }
         assert!(used.iter().all(|&u| u));
         // Outward orientation: the signed volume is positive and close to the blob's.
-        let vol: f64 = mesh
-            .faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| mesh.positions[v as usize].coords);
-                a.dot(&b.cross(&c)) / 6.0
-            })
-            .sum();
+        let vol = mesh.signed_volume();
         assert!(vol > 3.0 && vol < 6.0, "{vol}");
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("large.ply");

@@ -533,15 +533,8 @@ mod tests {
         mesh.positions.len() as i64 - edges.len() as i64 + mesh.faces.len() as i64
     }
 
-    /// Signed volume by the divergence theorem: positive when faces point outward.
     fn volume(mesh: &Mesh) -> f64 {
-        mesh.faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| mesh.positions[v as usize].coords);
-                a.dot(&b.cross(&c)) / 6.0
-            })
-            .sum()
+        mesh.signed_volume()
     }
 
     #[test]

@@ -42,9 +42,8 @@ use fresco_core::{CamFromWorld, FormatError, Mesh, Progress, Rigid3};
 use image::{GrayImage, RgbImage};
 use rayon::prelude::*;
 
-use fresco_core::rng::splitmix64;
-
 use crate::albedo::Albedo;
+use crate::hash_chain::HashChain;
 use crate::shapes::{self, Shape};
 
 /// Where the cameras stand.
@@ -353,27 +352,6 @@ impl SceneConfig {
     }
 }
 
-/// The scene's draws: a chain of core's SplitMix64 hash, `x <- splitmix64(x)`, not
-/// `fresco_core::Rng`'s stream. Kept because every camera layout and exposure of the
-/// synthetic scenes (which the sfm, dense and atlas tests are tuned on) comes from these
-/// bits; the hash itself is the one in `fresco_core::rng`.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64, stream: u64) -> Rng {
-        Rng(splitmix64(seed ^ splitmix64(stream)))
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        self.0 = splitmix64(self.0);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform in [-1, 1).
-    fn signed(&mut self) -> f64 {
-        2.0 * self.unit() - 1.0
-    }
-}
-
 fn place_views(
     config: &SceneConfig,
     centre: &Point3<f64>,
@@ -381,7 +359,7 @@ fn place_views(
     distance: f64,
 ) -> Vec<View> {
     let n = config.views as usize;
-    let mut rng = Rng::new(config.seed, 1);
+    let mut rng = HashChain::stream(config.seed, 1);
     let j = config.jitter;
     (0..n)
         .map(|i| {
@@ -566,7 +544,7 @@ fn sample_surface(scene: &Scene, n: usize) -> Vec<SurfaceSample> {
         total += a;
         cumulative.push(total);
     }
-    let mut rng = Rng::new(scene.config.seed, 2);
+    let mut rng = HashChain::stream(scene.config.seed, 2);
     (0..n)
         .filter_map(|_| {
             let target = rng.unit() * total;

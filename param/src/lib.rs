@@ -1,6 +1,24 @@
 //! fresco-param: a low-distortion parameterisation for surfaces of any genus (paper 003,
 //! section 4.1, after Zhang, Mischaikow and Turk 2005).
 //!
+//! Entry points: [`unwrap()`] (a mesh to per-corner UVs in a packed atlas, what `fresco unwrap`
+//! runs) with [`UnwrapConfig`], [`unwrap_charts`] (the same from a chart per face),
+//! [`charts::segment`] (the charts alone) and [`measure`] (scores any mesh's UVs).
+//!
+//! ```
+//! use fresco_core::NoProgress;
+//! use fresco_param::{UnwrapConfig, measure, unwrap};
+//!
+//! // A torus (genus 1): cut into disc charts, flattened, packed into one atlas.
+//! let mut mesh = fresco_datasets::shapes::torus(1.0, 0.4, 24, 12);
+//! let report = unwrap(&mut mesh, &UnwrapConfig::default(), &NoProgress)?;
+//! let uv = measure(&mesh)?;
+//! assert_eq!(uv.charts, report.charts);
+//! assert_eq!((uv.flipped, uv.overlapping_pairs), (0, 0));
+//! assert!(uv.l2_stretch < 1.05);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Charting (segmentation into disc charts):
 //! - [`geodesic`]: Dijkstra and fast-marching distances on the mesh ([`geodesic::SurfaceGraph`]).
 //! - [`agd`]: average geodesic distance from farthest-point base vertices.
@@ -11,10 +29,11 @@
 //!
 //! Unwrapping (charts to a packed atlas): [`unwrap::unwrap`] (whole mesh) and
 //! [`unwrap::unwrap_charts`] (from a chart per face) write per-corner UVs and chart ids into
-//! the mesh; building blocks [`chart_mesh::ChartMesh`], [`harmonic::mean_value`] (fold-free
-//! fallback), [`lscm::lscm`] (conformal map), [`stretch::optimise_free`] (Sander's L2 stretch with
-//! the boundary free inside a [`scaffold`]),
-//! [`split::split_in_two`], [`pack::pack`]. [`metrics::measure`] scores any mesh's UVs
+//! the mesh; building blocks [`chart_mesh::ChartMesh`], [`stretch::optimise_free`] (Sander's
+//! L2 stretch with the boundary free inside a scaffold) and, inside the crate, `harmonic.rs`
+//! (mean-value map, the fold-free fallback), `lscm.rs` (conformal map), `scaffold.rs`,
+//! `split.rs` and `pack.rs`.
+//! [`metrics::measure`] scores any mesh's UVs
 //! (flips, overlaps, L2/L∞ stretch, angle distortion, utilisation, seams);
 //! [`chart_image::chart_image`] draws an atlas with a distortion checker.
 //!
@@ -28,13 +47,13 @@ pub mod error;
 pub mod features;
 pub mod genus;
 pub mod geodesic;
-pub mod harmonic;
-pub mod lscm;
+pub(crate) mod harmonic;
+pub(crate) mod lscm;
 pub mod metrics;
-pub mod pack;
+pub(crate) mod pack;
 pub mod reeb;
-pub mod scaffold;
-pub mod split;
+pub(crate) mod scaffold;
+pub(crate) mod split;
 pub mod stretch;
 pub mod unwrap;
 

@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 
 use fresco_core::Mesh;
-use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::nalgebra::Point3;
 
 pub struct ClosestPoint<'a> {
     mesh: &'a Mesh,
@@ -104,53 +104,8 @@ impl<'a> ClosestPoint<'a> {
     }
 }
 
-/// Closest point of triangle abc to p, with its barycentric coordinates.
-pub fn closest_on_triangle(
-    p: &Point3<f64>,
-    a: &Point3<f64>,
-    b: &Point3<f64>,
-    c: &Point3<f64>,
-) -> (Point3<f64>, [f64; 3]) {
-    let ab: Vector3<f64> = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(&ap);
-    let d2 = ac.dot(&ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (*a, [1.0, 0.0, 0.0]);
-    }
-    let bp = p - b;
-    let d3 = ab.dot(&bp);
-    let d4 = ac.dot(&bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return (*b, [0.0, 1.0, 0.0]);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + ab * v, [1.0 - v, v, 0.0]);
-    }
-    let cp = p - c;
-    let d5 = ab.dot(&cp);
-    let d6 = ac.dot(&cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return (*c, [0.0, 0.0, 1.0]);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + ac * w, [1.0 - w, 0.0, w]);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, [0.0, 1.0 - w, w]);
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    (a + ab * v + ac * w, [1.0 - v - w, v, w])
-}
+/// Closest point of triangle abc to p, with its barycentric coordinates (core's).
+pub use fresco_core::closest_point::closest_on_triangle;
 
 #[cfg(test)]
 mod tests {

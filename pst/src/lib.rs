@@ -8,6 +8,25 @@
 //! by streaming it ([`apply`], section 5) or exported as an octree texture
 //! ([`octree_texture`]).
 //!
+//! Entry points: [`sample`] (any [`PointSource`], e.g. [`PlyPoints`], to a [`Sampling`]),
+//! [`Pst::create`] and [`Pst::open`] (the PST folder), [`Field`] (f_S lookups),
+//! [`apply::apply_to_ply`] (colours streamed onto the full mesh), [`paint`] and [`refine`].
+//!
+//! ```
+//! use fresco_core::NoProgress;
+//! use fresco_pst::{MemoryPoints, SamplingConfig, sample};
+//!
+//! // The 10,242 vertices of a sphere, streamed through the out-of-core sampler into ~500.
+//! let sphere = fresco_datasets::shapes::icosphere(1.0, 5);
+//! let source = MemoryPoints::from_mesh_vertices(&sphere);
+//! let nodes = tempfile::tempdir()?;
+//! let cfg = SamplingConfig { target: 500, ..Default::default() };
+//! let sampling = sample(&source, &cfg, nodes.path(), &NoProgress)?;
+//! assert_eq!(sampling.input_points, 10_242);
+//! assert!(sampling.samples.len().abs_diff(500) <= 5);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Modules, in pipeline order: `input` (point streams), `mgrid` (the depth-2 multi-grid),
 //! `node_files` (per-1-node files), `cluster` (2-node samples), `sampling`, `samples` (the
 //! in-core set), `index` (nearest neighbours), `sample_grid` (the cells of batched lookups),

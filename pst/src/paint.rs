@@ -196,6 +196,20 @@ fn channel_range(pst: &Pst, name: &str, width: Option<usize>) -> Result<(usize, 
     Ok((o, w))
 }
 
+/// Runs `edit` on the in-core samples and on the samples of the evicted nodes in `region`:
+/// the samples it changed in core, the evicted nodes it rewrote, the nodes the region touches.
+fn edit_everywhere(
+    pst: &mut Pst,
+    region: &Region,
+    edit: &dyn Fn(&mut SampleSet) -> usize,
+) -> Result<(usize, usize, Vec<u32>)> {
+    let changed = edit(&mut pst.samples);
+    let evicted = pst.edit_evicted(region, &|s| {
+        edit(s);
+    })?;
+    Ok((changed, evicted, pst.nodes_in_region(region)))
+}
+
 /// Runs one operation.
 pub fn apply_op(
     pst: &mut Pst,
@@ -234,11 +248,7 @@ pub fn apply_op(
                 }
                 n
             };
-            changed = edit(&mut pst.samples);
-            evicted = pst.edit_evicted(region, &|s| {
-                edit(s);
-            })?;
-            touched = pst.nodes_in_region(region);
+            (changed, evicted, touched) = edit_everywhere(pst, region, &edit)?;
         }
         Op::Noise {
             region,
@@ -280,11 +290,7 @@ pub fn apply_op(
                 }
                 n
             };
-            changed = edit(&mut pst.samples);
-            evicted = pst.edit_evicted(region, &|s| {
-                edit(s);
-            })?;
-            touched = pst.nodes_in_region(region);
+            (changed, evicted, touched) = edit_everywhere(pst, region, &edit)?;
         }
         Op::Smooth {
             region,
@@ -361,11 +367,7 @@ pub fn apply_op(
                 }
                 n
             };
-            changed = edit(&mut pst.samples);
-            evicted = pst.edit_evicted(&region, &|s| {
-                edit(s);
-            })?;
-            touched = pst.nodes_in_region(&region);
+            (changed, evicted, touched) = edit_everywhere(pst, &region, &edit)?;
         }
         Op::Refine {
             region,

@@ -3,6 +3,29 @@
 //! reconstruction (Kazhdan and Hoppe 2013) on an adaptive octree, iso-surface extraction,
 //! density trimming, mesh clean-up, quadric decimation and orientation towards the cameras.
 //!
+//! Entry points: [`dense::densify`] (photos to a fused cloud), [`pipeline::mesh_from_points`]
+//! (oriented or plain points to a clean mesh, what `fresco mesh` runs) and [`reconstruct`]
+//! (screened Poisson alone), each with its `Config` (`check()`ed, defaults documented).
+//!
+//! ```
+//! use fresco_core::NoProgress;
+//! use fresco_datasets::{SampleConfig, sample_points, shapes};
+//! use fresco_surface::{PoissonConfig, reconstruct};
+//!
+//! // 5,000 oriented points on the unit sphere, meshed at octree depth 6.
+//! let sphere = shapes::icosphere(1.0, 4);
+//! let cloud = sample_points(&sphere, &SampleConfig { count: 5_000, ..Default::default() })?;
+//! let cfg = PoissonConfig { depth: 6, ..Default::default() };
+//! let out = reconstruct(&cloud.points, &cloud.normals, &cfg, &NoProgress)?;
+//! let topology = fresco_core::Topology::build(&out.mesh)?;
+//! assert!(topology.is_closed_manifold());
+//! assert_eq!(topology.euler_characteristic(), 2);
+//! for p in &out.mesh.positions {
+//!     assert!((p.coords.norm() - 1.0).abs() < 0.02); // cells are 2.2 / 64 = 0.034 wide
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Dense stereo: [`dense::densify`] (registered photos and sparse points to
 //! `dense/fused.ply`) with [`dense::DenseConfig`]; `dense/` holds its steps (undistortion,
 //! view selection, PatchMatch, fusion, COLMAP depth-map files) and [`dense::evaluate_cloud`],
@@ -21,18 +44,18 @@
 //! - `orientation.rs`: [`orientation::face_the_cameras`] (components seen from behind are flipped), [`orientation::back_face_pixels`].
 //! - `metrics.rs`: [`metrics::mesh_distance`], [`metrics::point_set_distance`] (Chamfer, Hausdorff, F-score).
 
-pub mod bspline;
+pub(crate) mod bspline;
 pub mod cleanup;
 pub mod decimate;
 pub mod dense;
-pub mod isosurface;
+pub(crate) mod isosurface;
 pub mod metrics;
 pub mod normals;
-pub mod octree;
+pub(crate) mod octree;
 pub mod orientation;
 pub mod pipeline;
 pub mod poisson;
-pub mod solver;
+pub(crate) mod solver;
 pub mod trim;
 
 pub use poisson::{

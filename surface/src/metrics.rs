@@ -16,9 +16,10 @@
 //! - [`point_to_mesh_distances`]: distance of each query point to a mesh's surface.
 
 use fresco_core::Mesh;
+use fresco_core::closest_point::closest_on_triangle;
 use fresco_core::config::{ConfigError, require};
 use fresco_core::knn::{KnnError, PointIndex3};
-use fresco_core::nalgebra::{Point3, Vector3};
+use fresco_core::nalgebra::Point3;
 use rayon::prelude::*;
 
 /// Samples per query used to find candidate faces.
@@ -243,7 +244,7 @@ fn to_mesh(
                 }
                 seen[k] = f;
                 let [x, y, z] = mesh.triangle(f as usize);
-                best = best.min((closest_on_triangle(p, &x, &y, &z) - p).norm());
+                best = best.min((closest_on_triangle(p, &x, &y, &z).0 - p).norm());
             }
             best
         })
@@ -297,109 +298,9 @@ fn summarise(
     }
 }
 
-/// The point of triangle `abc` closest to `p` (Ericson 2005, section 5.1.5: Voronoi regions
-/// of the vertices, then edges, then the face).
-pub fn closest_on_triangle(
-    p: &Point3<f64>,
-    a: &Point3<f64>,
-    b: &Point3<f64>,
-    c: &Point3<f64>,
-) -> Point3<f64> {
-    let ab: Vector3<f64> = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(&ap);
-    let d2 = ac.dot(&ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(&bp);
-    let d4 = ac.dot(&bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return a + ab * v;
-    }
-    let cp = p - c;
-    let d5 = ab.dot(&cp);
-    let d6 = ac.dot(&cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return a + ac * w;
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return b + (c - b) * w;
-    }
-    let denom = va + vb + vc;
-    if denom.abs() < f64::MIN_POSITIVE {
-        // Collinear corners: the closest of the three edges' closest points.
-        return [(a, b), (b, c), (c, a)]
-            .iter()
-            .map(|(s, e)| {
-                let d = *e - *s;
-                let t = if d.norm_squared() > 0.0 {
-                    ((p - *s).dot(&d) / d.norm_squared()).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                *s + d * t
-            })
-            .min_by(|x, y| (x - p).norm().total_cmp(&(y - p).norm()))
-            .unwrap_or(*a);
-    }
-    let v = vb / denom;
-    let w = vc / denom;
-    a + ab * v + ac * w
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn brute_closest(p: &Point3<f64>, t: [Point3<f64>; 3]) -> f64 {
-        // Dense barycentric grid: the true minimum is within the grid spacing.
-        let n = 400;
-        let mut best = f64::INFINITY;
-        for i in 0..=n {
-            for j in 0..=n - i {
-                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                let q = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v;
-                best = best.min((q - p).norm());
-            }
-        }
-        best
-    }
-
-    #[test]
-    fn closest_point_matches_brute_force() {
-        let t = [
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.2, 0.1),
-            Point3::new(0.3, 0.9, -0.2),
-        ];
-        let mut rng = fresco_core::Rng::new(1);
-        for _ in 0..200 {
-            let mut r = || rng.range(-1.0, 2.0);
-            let p = Point3::new(r(), r(), r());
-            let exact = (closest_on_triangle(&p, &t[0], &t[1], &t[2]) - p).norm();
-            let brute = brute_closest(&p, t);
-            // The grid point is at most half a grid cell (edge ~1.1 / 400) from the true one.
-            assert!(
-                exact <= brute + 1e-12 && brute - exact < 3e-3,
-                "{exact} {brute}"
-            );
-        }
-    }
 
     #[test]
     fn samples_cover_the_area() {

@@ -378,10 +378,8 @@ impl Level {
         self.active.len() + self.ghost.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
+    /// The key of vertex `i`, active or ghost (the tests read vertex positions through it).
+    #[cfg(test)]
     pub fn key(&self, i: usize) -> u64 {
         if i < self.active.len() {
             self.active.keys[i]

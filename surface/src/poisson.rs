@@ -108,6 +108,8 @@ impl PoissonConfig {
     /// Validates every field (see each field's range).
     pub fn check(&self) -> Result<(), ConfigError> {
         let finite_at_least = |v: f64, lo: f64| v.is_finite() && v >= lo;
+        // The octree packs coordinates for depths up to `octree::MAX_DEPTH` (16).
+        const _: () = assert!(12 <= octree::MAX_DEPTH);
         require(
             (2..=12).contains(&self.depth),
             "depth",
@@ -272,54 +274,17 @@ struct Density {
 }
 
 impl Density {
-    fn weights(&self, u: [f64; 3]) -> ([i64; 3], [[f64; 3]; 3]) {
+    /// Calls `visit(grid index, weight)` for the grid nodes of the 3x3x3 quadratic B-spline
+    /// stencil around `u` that lie inside the grid, with the weight `wx * wy * wz`.
+    fn stencil(n: i64, u: [f64; 3], mut visit: impl FnMut(usize, f64)) {
         let mut c = [0i64; 3];
         let mut w = [[0.0; 3]; 3];
         for a in 0..3 {
-            let x = u[a] * self.n as f64;
-            let ci = (x.floor() as i64).clamp(0, self.n - 1);
+            let x = u[a] * n as f64;
+            let ci = (x.floor() as i64).clamp(0, n - 1);
             c[a] = ci;
             w[a] = bspline::quadratic((x - (ci as f64 + 0.5)).clamp(-0.5, 0.5));
         }
-        (c, w)
-    }
-
-    fn build(depth: u32, samples: &[[f64; 3]]) -> Density {
-        let n = 1i64 << depth;
-        let mut d = Density {
-            n,
-            grid: vec![0.0; (n * n * n) as usize],
-        };
-        for u in samples {
-            let (c, w) = d.weights(*u);
-            for (dz, wz) in w[2].iter().enumerate() {
-                let z = c[2] + dz as i64 - 1;
-                if z < 0 || z >= n {
-                    continue;
-                }
-                for (dy, wy) in w[1].iter().enumerate() {
-                    let y = c[1] + dy as i64 - 1;
-                    if y < 0 || y >= n {
-                        continue;
-                    }
-                    for (dx, wx) in w[0].iter().enumerate() {
-                        let x = c[0] + dx as i64 - 1;
-                        if x < 0 || x >= n {
-                            continue;
-                        }
-                        d.grid[((z * n + y) * n + x) as usize] += (wx * wy * wz) as f32;
-                    }
-                }
-            }
-        }
-        d
-    }
-
-    /// Kernel-smoothed sample count at `u`.
-    fn smoothed(&self, u: [f64; 3]) -> f64 {
-        let n = self.n;
-        let (c, w) = self.weights(u);
-        let mut s = 0.0;
         for (dz, wz) in w[2].iter().enumerate() {
             let z = c[2] + dz as i64 - 1;
             if z < 0 || z >= n {
@@ -335,10 +300,25 @@ impl Density {
                     if x < 0 || x >= n {
                         continue;
                     }
-                    s += wx * wy * wz * self.grid[((z * n + y) * n + x) as usize] as f64;
+                    visit(((z * n + y) * n + x) as usize, wx * wy * wz);
                 }
             }
         }
+    }
+
+    fn build(depth: u32, samples: &[[f64; 3]]) -> Density {
+        let n = 1i64 << depth;
+        let mut grid = vec![0.0f32; (n * n * n) as usize];
+        for u in samples {
+            Density::stencil(n, *u, |i, w| grid[i] += w as f32);
+        }
+        Density { n, grid }
+    }
+
+    /// Kernel-smoothed sample count at `u`.
+    fn smoothed(&self, u: [f64; 3]) -> f64 {
+        let mut s = 0.0;
+        Density::stencil(self.n, u, |i, w| s += w * self.grid[i] as f64);
         s
     }
 

@@ -1,6 +1,7 @@
 //! Screened Poisson on point clouds sampled from the closed test shapes, checked against the
 //! ground-truth meshes: Chamfer distance, watertightness, manifoldness, genus.
 
+use fresco_core::closest_point::closest_on_triangle;
 use fresco_core::knn::PointIndex3;
 use fresco_core::nalgebra::{Point3, Vector3};
 use fresco_core::{Mesh, NoProgress, Rng, Topology};
@@ -36,49 +37,6 @@ fn sample(mesh: &Mesh, n: usize, seed: u64) -> (Vec<Point3<f64>>, Vec<Vector3<f6
     (pts, nrm)
 }
 
-/// Closest point on triangle `abc` to `p` (Ericson, Real-Time Collision Detection 5.1.5).
-fn closest_on_triangle(
-    p: Point3<f64>,
-    a: Point3<f64>,
-    b: Point3<f64>,
-    c: Point3<f64>,
-) -> Point3<f64> {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(&ap);
-    let d2 = ac.dot(&ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(&bp);
-    let d4 = ac.dot(&bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let d5 = ab.dot(&cp);
-    let d6 = ac.dot(&cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
-}
-
 /// Mean distance from `queries` to the surface of `mesh`: exact point-triangle distances to
 /// the 16 faces with the nearest centroids (the meshes here have faces much smaller than the
 /// distances' scale of interest, so the true closest face is among them).
@@ -98,7 +56,7 @@ fn mean_distance_to(queries: &[Point3<f64>], mesh: &Mesh) -> f64 {
                 .iter()
                 .map(|nb| {
                     let [a, b, c] = mesh.triangle(nb.index as usize);
-                    (closest_on_triangle(*q, a, b, c) - q).norm()
+                    (closest_on_triangle(q, &a, &b, &c).0 - q).norm()
                 })
                 .fold(f64::INFINITY, f64::min)
         })
