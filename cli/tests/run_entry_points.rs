@@ -1,14 +1,19 @@
 //! `fresco run`'s entry points for users' own data (issue 15): `--colmap` with the committed
-//! COLMAP model of templeSparseRing (text, and the same model as binary) and `--mesh` with the
-//! ground-truth mesh of a synthetic scene (with its ground-truth cameras); the report opens in
-//! headless Chromium with no error and a non-blank viewer (screenshot kept under
-//! target/viewer/), and `fresco view` serves it on 127.0.0.1.
+//! COLMAP model of templeSparseRing (a textured model.glb that the glTF validator passes), a
+//! binary COLMAP model (a synthetic scene's, giving the same bytes as its text form) and
+//! `--mesh` with the ground-truth mesh of a synthetic scene (with its ground-truth cameras);
+//! the report opens in headless Chromium with no error and a non-blank viewer (screenshot
+//! kept under target/viewer/), and `fresco view` serves it on 127.0.0.1.
 
 mod common;
 
 #[path = "../../tests/src/viewer.rs"]
 #[allow(dead_code)]
 mod viewer;
+
+#[path = "../../tests/src/gltf_validator.rs"]
+#[allow(dead_code)]
+mod gltf_validator;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::process::Stdio;
@@ -33,7 +38,7 @@ fn colmap_model_to_model_glb_and_a_report_that_opens_in_chromium() {
     assert_no_panic(&out);
     assert!(out.status.success(), "{}", stderr(&out));
     let names: Vec<String> = statuses(&ws).into_iter().map(|(n, _)| n).collect();
-    assert_eq!(names, ["import", "mesh", "unwrap", "export"]);
+    assert_eq!(names, ["import", "dense", "mesh", "unwrap", "texture"]);
     let s = summary(&ws);
     assert!(
         s["stages"][0]["summary"]["registered"].as_u64().unwrap() >= 10,
@@ -41,8 +46,11 @@ fn colmap_model_to_model_glb_and_a_report_that_opens_in_chromium() {
     );
     let glb = ws.join("model.glb");
     assert!(std::fs::metadata(&glb).unwrap().len() > 1000);
-    // The stand-ins are said.
-    assert!(s["warnings"].to_string().contains("stand-in"), "{s}");
+    // Textured, and valid.
+    let (_, textures) = fresco_core::gltf::read_glb(&glb).unwrap();
+    assert!(!textures.is_empty());
+    let v = gltf_validator::validate(&glb).unwrap_or_else(|e| panic!("{e}"));
+    assert!(v.is_clean(), "{}", v.raw);
 
     // The report: self-contained (no http(s) reference), opens with no error, viewer not blank.
     let html = std::fs::read_to_string(ws.join("report.html")).unwrap();
@@ -52,7 +60,14 @@ fn colmap_model_to_model_glb_and_a_report_that_opens_in_chromium() {
             "the report refers outside: {needle}"
         );
     }
-    for section in ["Cameras and sparse points", "Mesh", "Charts", "Model"] {
+    for section in [
+        "Cameras and sparse points",
+        "Depth maps",
+        "Mesh",
+        "Charts",
+        "Texture atlas",
+        "Model",
+    ] {
         assert!(html.contains(&format!("<h2>{section}</h2>")), "{section}");
     }
     let check = viewer::check_report(&ws.join("report.html"), "report_colmap_temple")
@@ -98,13 +113,28 @@ fn colmap_model_to_model_glb_and_a_report_that_opens_in_chromium() {
 
 #[test]
 fn a_binary_colmap_model_imports_like_its_text_form() {
+    // A small synthetic set keeps the two whole chains short; its cameras and points are
+    // a COLMAP text model.
     let dir = tempfile::tempdir().unwrap();
-    let text = repo().join("datasets/reference/colmap/templeSparseRing");
+    let syn = dir.path().join("syn");
+    let out = run(&[
+        "--quiet",
+        "synth",
+        "sphere",
+        "--views",
+        "6",
+        "--size",
+        "200x150",
+        "-o",
+        syn.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = syn.join("sparse");
     let bin = dir.path().join("bin");
     std::fs::create_dir_all(&bin).unwrap();
     let ws_text = dir.path().join("ws_text");
     let ws_bin = dir.path().join("ws_bin");
-    let base = [temple().to_str().unwrap().to_string()];
+    let base = [syn.join("images").to_str().unwrap().to_string()];
     let go = |ws: &std::path::Path, model: &std::path::Path| {
         let mut args: Vec<String> = vec!["run".into()];
         args.extend(base.iter().cloned());
@@ -173,7 +203,7 @@ fn a_users_mesh_with_ground_truth_cameras_gives_a_model_of_that_mesh() {
     assert_no_panic(&out);
     assert!(out.status.success(), "{}", stderr(&out));
     let names: Vec<String> = statuses(&ws).into_iter().map(|(n, _)| n).collect();
-    assert_eq!(names, ["import", "import-mesh", "unwrap", "export"]);
+    assert_eq!(names, ["import", "import-mesh", "unwrap", "texture"]);
     // The model is the user's mesh: same face count, same geometry.
     let s = summary(&ws);
     let gt_faces = s["stages"][1]["summary"]["faces"].as_u64().unwrap();

@@ -37,6 +37,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .error { background: #fde2e2; border-left: 4px solid #d33; padding: 0.4em 0.8em; }
 figure { margin: 0.8em 0; } figcaption { color: #555; font-size: 0.9em; }
 img.pic { max-width: 100%; border: 1px solid #ddd; }
+.row figure { display: inline-block; width: 32%; margin-right: 1%; vertical-align: top; }
 .thumbs img { height: 72px; margin: 2px; border: 1px solid #ddd; }
 .status-ran { color: #186a1d; } .status-skipped { color: #555; } .status-failed { color: #b00; }
 #viewer { width: 100%; height: 520px; background: #17171c; display: block; border-radius: 4px; }
@@ -136,6 +137,30 @@ fn key_figures(st: &crate::run::StageOutcome) -> String {
             add("points", "points");
             if let Some(e) = v.get("mean_reprojection_px").and_then(|x| x.as_f64()) {
                 parts.push(format!("reprojection {e:.3} px"));
+            }
+        }
+        "dense" => {
+            if let Some(n) = v.get("views").and_then(|x| x.as_array()) {
+                parts.push(format!("depth maps {}", n.len()));
+            }
+            if let Some(n) = v.get("fusion").and_then(|f| f.get("points")) {
+                parts.push(format!("fused points {n}"));
+            }
+        }
+        "texture" => {
+            add("faces", "faces");
+            add("views", "views_used");
+            add("atlas", "atlas_size");
+            if let Some(c) = v.get("coverage").and_then(|x| x.as_f64()) {
+                parts.push(format!("coverage {:.1}%", 100.0 * c));
+            }
+        }
+        "holdout" => {
+            if let (Some(a), Some(b)) = (
+                v.get("mean_psnr").and_then(|x| x.as_f64()),
+                v.get("mean_psnr_gain_fitted").and_then(|x| x.as_f64()),
+            ) {
+                parts.push(format!("PSNR {a:.2} dB, gain-fitted {b:.2} dB"));
             }
         }
         _ => {
@@ -255,6 +280,38 @@ pub fn viewer_page(title: &str, url: &str) -> String {
     out
 }
 
+/// The held-out photos beside the model rendered into their cameras, with the figures.
+fn held_out_section(out: &mut String, s: &RunSummary) {
+    let Some(h) = &s.held_out_comparison else {
+        return;
+    };
+    out.push_str("<h2>Held-out photos</h2>");
+    let _ = write!(
+        out,
+        "<p>Photos kept out of dense and texture; the model rendered into their cameras. Mean PSNR {:.2} dB, after a per-channel gain fitted to the photo {:.2} dB (SSIM {:.3}).</p>",
+        h["mean_psnr"].as_f64().unwrap_or(f64::NAN),
+        h["mean_psnr_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+        h["mean_ssim_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+    );
+    for v in h["views"].as_array().into_iter().flatten() {
+        let Some(path) = v["picture"].as_str() else {
+            continue;
+        };
+        let caption = format!(
+            "{}: photo | model | 4x difference (grey: not compared). PSNR {:.2} dB, gain-fitted {:.2} dB, SSIM {:.3}, over {} pixels",
+            v["name"].as_str().unwrap_or("?"),
+            v["psnr"].as_f64().unwrap_or(f64::NAN),
+            v["psnr_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+            v["ssim_gain_fitted"].as_f64().unwrap_or(f64::NAN),
+            v["pixels"],
+        );
+        attempt(out, "held-out picture", |o| {
+            figure(o, &figures::picture_file(Path::new(path), 1040, caption)?);
+            Ok(())
+        });
+    }
+}
+
 /// Writes `<ws>/report.html` (atomically) and returns its path.
 pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     let ws = &plan.ws;
@@ -343,8 +400,22 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
     if !depth.is_empty() {
         out.push_str("<h2>Depth maps</h2>");
         attempt(&mut out, "depth map", |o| {
-            let p = figures::picture_file(&depth[0], 640, format!("{}", depth[0].display()))?;
-            figure(o, &p);
+            // Three depth maps spread over the photos, side by side.
+            o.push_str(r#"<div class="row">"#);
+            let step = (depth.len() / 3).max(1);
+            for d in depth.iter().step_by(step).take(3) {
+                let name = d
+                    .file_name()
+                    .map(|n| n.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                let name = name
+                    .trim_end_matches(".png")
+                    .trim_end_matches(".photometric");
+                let p =
+                    figures::picture_file(d, 400, format!("depth map of {name} (false colour)"))?;
+                figure(o, &p);
+            }
+            o.push_str("</div>");
             let conf = pictures_under(&ws.join("dense"), "conf");
             if let Some(c) = conf.first() {
                 figure(
@@ -396,7 +467,7 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
         });
     }
 
-    let atlases = pictures_under(&ws.join("texture"), "");
+    let atlases = pictures_under(&ws.join("texture"), "atlas");
     if !atlases.is_empty() {
         out.push_str("<h2>Texture atlas</h2>");
         attempt(&mut out, "atlas", |o| {
@@ -410,12 +481,11 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
         });
     }
 
+    held_out_section(&mut out, s);
+
     let glb = ws.join("model.glb");
     if glb.is_file() {
         out.push_str("<h2>Model</h2>");
-        if let Some(note) = stage_summary(s, "export").and_then(|st| st.stand_in.clone()) {
-            let _ = write!(out, r#"<p class="warn">Stand-in: {}</p>"#, escape(&note));
-        }
         let size = std::fs::metadata(&glb).map(|m| m.len()).unwrap_or(0);
         let source = if size <= MAX_EMBEDDED_GLB {
             GlbSource::Embedded(

@@ -4,6 +4,7 @@
 //! - `stages.rs`: the stage table (inputs, outputs, arguments, the call that runs each);
 //! - `record.rs`: per-stage records and fingerprints, which decide what is skipped;
 //! - `quality.rs`: the `--quality` presets;
+//! - `holdout.rs`: the held-out photos' comparison with the textured model;
 //! - `inputs.rs`: checks of what the user gave, `--colmap` and `--mesh` imports;
 //! - `memory.rs`: peak memory per stage.
 //!
@@ -14,6 +15,7 @@
 //! so a run killed at any moment and started again gives the same bytes as one that was not.
 //! At the end (or at a failure) the summary and the report are written.
 
+pub mod holdout;
 pub mod inputs;
 pub mod memory;
 pub mod quality;
@@ -44,7 +46,7 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value_t = Quality::default())]
     pub quality: Quality,
     /// Run again from this stage on, whatever the records say (features, match, sfm, import,
-    /// mesh, import-mesh, unwrap, export).
+    /// dense, mesh, import-mesh, unwrap, texture, holdout).
     #[arg(long)]
     pub from: Option<String>,
     /// Run every stage again.
@@ -57,12 +59,13 @@ pub struct RunArgs {
     /// Texture this mesh (.ply or .obj, in the frame of the cameras) instead of making one.
     #[arg(long)]
     pub mesh: Option<PathBuf>,
-    /// Folder of object masks (<photo name>.png or <stem>.png), used by sfm's silhouette
-    /// constraints (and dense and texture when they land).
+    /// Folder of object masks (<photo name>.png or <stem>.png, 0 = background), used by sfm's
+    /// silhouette constraints, dense, texture and the held-out comparison.
     #[arg(long)]
     pub masks: Option<PathBuf>,
-    /// Photos used for the cameras but kept out of the surface and the texture, to measure
-    /// the textured model against them (comma-separated names, e.g. a.png,b.png).
+    /// Photos used for the cameras but kept out of dense and texture, to measure the textured
+    /// model against them (comma-separated names, e.g. a.png,b.png): summary.json's
+    /// `holdout` has the PSNR per photo, raw and gain-fitted.
     #[arg(long, value_delimiter = ',')]
     pub holdout: Vec<String>,
     /// Calibration matrix (3x3, K.txt) shared by all photos; overrides EXIF.
@@ -109,6 +112,9 @@ pub struct RunSummary {
     pub workspace: PathBuf,
     pub quality: Quality,
     pub holdout: Vec<String>,
+    /// With --holdout: the model against each held-out photo (PSNR, SSIM raw and
+    /// gain-fitted, the side-by-side picture), from the holdout stage.
+    pub held_out_comparison: Option<serde_json::Value>,
     pub model: Option<PathBuf>,
     pub report: Option<PathBuf>,
     /// Set when the run stopped at a stage: the stage and the error.
@@ -343,6 +349,19 @@ fn warnings(stages: &[StageOutcome]) -> Vec<String> {
                 ));
             }
         }
+        if let Some(notes) = s.summary["warnings"].as_array() {
+            for w in notes.iter().filter_map(|w| w.as_str()) {
+                out.push(format!("{}: {w}", s.name));
+            }
+        }
+        if let Some(names) = s.summary["not_registered"].as_array() {
+            for n in names.iter().filter_map(|n| n.as_str()) {
+                out.push(format!(
+                    "{}: held-out photo {n} has no camera (sfm did not register it): not compared",
+                    s.name
+                ));
+            }
+        }
         if let Some(unreg) = s.summary["unregistered"].as_array() {
             for u in unreg {
                 out.push(format!(
@@ -373,6 +392,7 @@ pub fn run(args: RunArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
         workspace: plan.ws.clone(),
         quality: plan.quality,
         holdout: plan.holdout.clone(),
+        held_out_comparison: None,
         model: (error.is_none() && model.is_file()).then_some(model),
         report: None,
         error: error.as_ref().map(|e| format!("{e:#}")),
@@ -380,11 +400,11 @@ pub fn run(args: RunArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
         stages,
         seconds_total: 0.0,
     };
-    if !plan.holdout.is_empty() {
-        summary.warnings.push(
-            "--holdout: no held-out PSNR yet: dense stereo and the texture stage, which keep the held-out photos out, are not built; the photos were used by sfm only".into(),
-        );
-    }
+    summary.held_out_comparison = summary
+        .stages
+        .iter()
+        .find(|s| s.name == "holdout" && s.status != "failed" && !s.summary.is_null())
+        .map(|s| s.summary.clone());
     summary.seconds_total = start.elapsed().as_secs_f64();
     match crate::report::write_report(&plan, &summary) {
         Ok(path) => summary.report = Some(path),

@@ -2,16 +2,19 @@
 //! same flags `fresco <verb> --help` documents). Whatever a preset does not name keeps the
 //! verb's default.
 //!
-//! | stage    | draft                                        | normal                 | high                   |
-//! |----------|----------------------------------------------|------------------------|------------------------|
-//! | features | photos down to 1000 px, 4096 features | defaults: 3200 px, 8192 features | 16384 features |
-//! | match    | defaults (exhaustive pairs, ratio 0.8)        | defaults               | defaults               |
-//! | sfm      | defaults                                     | defaults               | defaults               |
-//! | mesh     | Poisson depth 7, 20k faces                   | depth 9, 200k faces    | depth 10, 500k faces   |
-//! | unwrap   | 1024 px atlas                                | 2048 px atlas          | 4096 px atlas          |
+//! | stage    | draft                                  | normal                                  | high                         |
+//! |----------|----------------------------------------|-----------------------------------------|------------------------------|
+//! | features | photos down to 1000 px, 4096 features  | defaults: 3200 px, 8192 features        | 16384 features               |
+//! | match    | defaults (exhaustive pairs, ratio 0.8) | defaults                                | defaults                     |
+//! | sfm      | defaults                               | defaults                                | defaults                     |
+//! | dense    | images down to 320 px, 3 source views, 3 PatchMatch iterations | images up to 1600 px (default), 4 sources, 4 iterations | 3200 px, the defaults' 8 sources and 6 iterations |
+//! | mesh     | Poisson depth 7, 20k faces             | depth 9, 200k faces                     | depth 10, 500k faces         |
+//! | unwrap   | 1024 px chart packing                  | 2048 px                                 | 4096 px                      |
+//! | texture  | 0.5 texel per photo pixel, atlas at most 2048 | defaults: 1 texel per pixel, at most 8192 | 1.5 texels per pixel |
 //!
-//! `draft` is for a first look in under a minute on the bundled sets; `high` for the final
-//! model. Dense stereo and the texture atlas get their rows when those stages land.
+//! The unwrap's atlas size only sets the packing's resolution: the texture stage sizes the
+//! atlas for the photos' resolution (`--texels-per-pixel`, capped by `--atlas`). `draft` is
+//! for a first look in about a minute on the bundled sets; `high` for the final model.
 
 use clap::ValueEnum;
 use serde::Serialize;
@@ -47,6 +50,22 @@ impl Quality {
         }
     }
 
+    /// Arguments of `fresco dense`.
+    pub fn dense(self) -> &'static [&'static str] {
+        match self {
+            Quality::Draft => &[
+                "--max-image-size",
+                "320",
+                "--max-sources",
+                "3",
+                "--iterations",
+                "3",
+            ],
+            Quality::Normal => &["--max-sources", "4", "--iterations", "4"],
+            Quality::High => &["--max-image-size", "3200"],
+        }
+    }
+
     /// Arguments of `fresco mesh`.
     pub fn mesh(self) -> &'static [&'static str] {
         match self {
@@ -62,6 +81,15 @@ impl Quality {
             Quality::Draft => &["--atlas", "1024"],
             Quality::Normal => &["--atlas", "2048"],
             Quality::High => &["--atlas", "4096"],
+        }
+    }
+
+    /// Arguments of `fresco texture`.
+    pub fn texture(self) -> &'static [&'static str] {
+        match self {
+            Quality::Draft => &["--texels-per-pixel", "0.5", "--atlas", "2048"],
+            Quality::Normal => &[],
+            Quality::High => &["--texels-per-pixel", "1.5"],
         }
     }
 }

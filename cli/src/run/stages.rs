@@ -3,13 +3,12 @@
 //! preset) and the one call that runs it. The runner (`mod.rs`) fingerprints the inputs and
 //! outputs, decides what to skip and records what ran (`record.rs`).
 //!
-//! The chain today: `features`, `match`, `sfm` (or `import` of a COLMAP model with
-//! `--colmap`), `mesh` (from the sparse points: a stand-in until dense stereo lands; or
-//! `import-mesh` with `--mesh`), `unwrap`, `export` (an untextured model.glb: a stand-in until
-//! the texture atlas lands). Dense stereo slots in before `mesh` (reading `sparse/0` and the
-//! photos, writing `dense/`, after which `mesh` reads `dense/fused.ply`), the texture stage
-//! replaces `export` (reading `charts.ply`, `sparse/0` and the photos, writing `texture/` and
-//! `model.glb`): one [`Stage`] entry each in [`chain`].
+//! The chain: `features`, `match`, `sfm` (or `import` of a COLMAP model with `--colmap`),
+//! `dense` (depth maps fused into `dense/fused.ply`; `--holdout` photos left out), `mesh`
+//! (from `dense/fused.ply`, facing the undistorted cameras of `dense/sparse`; or `import-mesh`
+//! with `--mesh`, which skips dense), `unwrap` (`charts.ply`), `texture` (`texture/` and the
+//! textured `model.glb`; `--holdout` photos left out) and, with `--holdout`, `holdout` (the
+//! model rendered into the held-out photos and compared with them, `holdout.rs`).
 
 use std::fmt::Debug;
 use std::path::{Path, PathBuf};
@@ -50,9 +49,12 @@ pub fn chain(plan: &Plan) -> Vec<&'static Stage> {
     if plan.mesh.is_some() {
         stages.push(&IMPORT_MESH);
     } else {
-        stages.push(&MESH_FROM_SPARSE);
+        stages.extend([&DENSE, &MESH]);
     }
-    stages.extend([&UNWRAP, &EXPORT]);
+    stages.extend([&UNWRAP, &TEXTURE]);
+    if !plan.holdout.is_empty() {
+        stages.push(&HOLDOUT);
+    }
     stages
 }
 
@@ -62,10 +64,12 @@ pub const NAMES: &[&str] = &[
     "match",
     "sfm",
     "import",
+    "dense",
     "mesh",
     "import-mesh",
     "unwrap",
-    "export",
+    "texture",
+    "holdout",
 ];
 
 /// A verb's arguments parsed from a list, as its command line would be.
@@ -229,21 +233,65 @@ pub static IMPORT: Stage = Stage {
     },
 };
 
+// --- dense ---------------------------------------------------------------------------------
+
+/// Removes a folder a stage rewrites whole, so no file of an earlier run with other settings
+/// (an image held out since, a depth map of a killed run) stays among its outputs.
+fn clear(dir: &Path) -> anyhow::Result<()> {
+    match std::fs::remove_dir_all(dir) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("cannot remove {}", dir.display())),
+    }
+}
+
+pub static DENSE: Stage = Stage {
+    name: "dense",
+    does: "depth maps of the photos (PatchMatch stereo), fused into an oriented point cloud",
+    stand_in: None,
+    inputs: |p| {
+        let mut v = vec![p.ws.join("images.json"), p.ws.join("sparse")];
+        v.extend(super::inputs::list_photos(&p.photos)?);
+        v.extend(p.masks.clone());
+        Ok(v)
+    },
+    outputs: |p| vec![p.ws.join("dense")],
+    argv: |p| {
+        let mut v = vec![s(&p.ws)];
+        v.extend(strings(p.quality.dense()));
+        for name in &p.holdout {
+            v.extend(["--exclude".into(), name.clone()]);
+        }
+        if let Some(m) = &p.masks {
+            v.extend(["--masks".into(), s(m)]);
+        }
+        v
+    },
+    settings: describe::<crate::dense::DenseArgs>,
+    execute: |p, argv, ctx| {
+        clear(&p.ws.join("dense"))?;
+        crate::dense::run(parse(argv)?, ctx)
+    },
+};
+
 // --- mesh ----------------------------------------------------------------------------------
 
-pub static MESH_FROM_SPARSE: Stage = Stage {
+pub static MESH: Stage = Stage {
     name: "mesh",
-    does: "surface: screened Poisson, trimming, clean-up, decimation",
-    stand_in: Some(
-        "the mesh is made from the sparse SfM points: dense stereo is not built yet, so it is coarse",
-    ),
-    inputs: |p| Ok(vec![p.ws.join("sparse").join("points.ply")]),
+    does: "surface from the fused points: screened Poisson, trimming, clean-up, decimation, facing the cameras",
+    stand_in: None,
+    inputs: |p| {
+        let dense = p.ws.join("dense");
+        Ok(vec![dense.join("fused.ply"), dense.join("sparse")])
+    },
     outputs: |p| vec![p.ws.join("mesh.ply")],
     argv: |p| {
         let mut v = vec![
             s(&p.ws),
             "--points".into(),
-            s(&p.ws.join("sparse").join("points.ply")),
+            s(&p.ws.join("dense").join("fused.ply")),
+            "--cameras".into(),
+            s(&p.ws.join("dense").join("sparse")),
         ];
         v.extend(strings(p.quality.mesh()));
         v
@@ -292,29 +340,70 @@ pub static UNWRAP: Stage = Stage {
     execute: |_, argv, ctx| crate::unwrap::run(parse(argv)?, ctx),
 };
 
-// --- export --------------------------------------------------------------------------------
+// --- texture -------------------------------------------------------------------------------
 
-pub static EXPORT: Stage = Stage {
-    name: "export",
-    does: "model.glb (glTF 2.0)",
-    stand_in: Some(
-        "model.glb is untextured: the texture atlas stage is not built yet (charts.png shows the unwrapped charts)",
-    ),
-    inputs: |p| Ok(vec![p.ws.join("charts.ply")]),
-    outputs: |p| vec![p.ws.join("model.glb")],
-    argv: |p| vec![s(&p.ws.join("charts.ply")), s(&p.ws.join("model.glb"))],
+pub static TEXTURE: Stage = Stage {
+    name: "texture",
+    does: "texture atlas from the photos (views per face, graph-cut seams, exposure gains) and model.glb",
+    stand_in: None,
+    inputs: |p| {
+        let mut v = vec![
+            p.ws.join("charts.ply"),
+            p.ws.join("images.json"),
+            p.ws.join("sparse"),
+        ];
+        v.extend(super::inputs::list_photos(&p.photos)?);
+        v.extend(p.masks.clone());
+        Ok(v)
+    },
+    outputs: |p| vec![p.ws.join("texture"), p.ws.join("model.glb")],
+    argv: |p| {
+        let mut v = vec![s(&p.ws), "--mesh".into(), s(&p.ws.join("charts.ply"))];
+        v.extend(strings(p.quality.texture()));
+        if !p.holdout.is_empty() {
+            v.extend(["--exclude".into(), p.holdout.join(",")]);
+        }
+        if let Some(m) = &p.masks {
+            v.extend(["--masks".into(), s(m)]);
+        }
+        v
+    },
+    settings: describe::<crate::texture::TextureArgs>,
+    execute: |p, argv, ctx| {
+        clear(&p.ws.join("texture"))?;
+        crate::texture::run(parse(argv)?, ctx)
+    },
+};
+
+// --- holdout -------------------------------------------------------------------------------
+
+pub static HOLDOUT: Stage = Stage {
+    name: "holdout",
+    does: "model.glb rendered into the held-out photos' cameras and compared with them (PSNR, SSIM)",
+    stand_in: None,
+    inputs: |p| {
+        let mut v = vec![
+            p.ws.join("model.glb"),
+            p.ws.join("images.json"),
+            p.ws.join("sparse"),
+        ];
+        v.extend(p.holdout.iter().map(|h| p.photos.join(h)));
+        v.extend(p.masks.clone());
+        Ok(v)
+    },
+    outputs: |p| vec![p.ws.join("holdout")],
+    argv: |p| {
+        let mut v = vec![s(&p.ws), p.holdout.join(",")];
+        if let Some(m) = &p.masks {
+            v.push(s(m));
+        }
+        v
+    },
     settings: literal,
     execute: |p, _, _| {
-        let charts = p.ws.join("charts.ply");
-        let mesh = fresco_core::ply::read_mesh(&charts)?;
-        let out = p.ws.join("model.glb");
-        fresco_core::gltf::write_glb(&out, &mesh, &[])?;
-        Ok(serde_json::json!({
-            "output": out,
-            "faces": mesh.faces.len(),
-            "vertices": mesh.positions.len(),
-            "textured": false,
-        }))
+        let out = p.ws.join("holdout");
+        clear(&out)?;
+        super::holdout::compare_held_out(&p.ws, &p.holdout, p.masks.as_deref(), &out)
     },
 };
 
@@ -332,7 +421,7 @@ mod tests {
                 colmap: colmap.then(|| PathBuf::from("/c")),
                 mesh: mesh.then(|| PathBuf::from("/m.ply")),
                 masks: Some(PathBuf::from("/masks")),
-                holdout: vec![],
+                holdout: vec!["a.png".into(), "b.png".into()],
                 focal_file: Some(PathBuf::from("/K.txt")),
             };
             for stage in chain(&plan) {
@@ -355,10 +444,10 @@ mod tests {
             holdout: vec![],
             focal_file: None,
         };
-        let draft = (MESH_FROM_SPARSE.settings)(&(MESH_FROM_SPARSE.argv)(&plan)).unwrap();
+        let draft = (MESH.settings)(&(MESH.argv)(&plan)).unwrap();
         assert!(draft.contains("depth: 7"), "{draft}");
         plan.quality = super::super::quality::Quality::High;
-        let high = (MESH_FROM_SPARSE.settings)(&(MESH_FROM_SPARSE.argv)(&plan)).unwrap();
+        let high = (MESH.settings)(&(MESH.argv)(&plan)).unwrap();
         assert!(high.contains("depth: 10"), "{high}");
     }
 }
