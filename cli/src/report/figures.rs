@@ -251,7 +251,7 @@ pub fn escape(s: &str) -> String {
 /// a hemisphere's rows): its normal, from the smallest principal axis of the camera centres,
 /// is up, signed to agree with the cameras' mean image-up axis. When the centres are not
 /// planar (fewer than 3, or a line), the mean image-up axis alone (photos taken upright).
-fn up_direction(rec: &Reconstruction) -> Vector3<f64> {
+pub(super) fn up_direction(rec: &Reconstruction) -> Vector3<f64> {
     let mut image_up = Vector3::zeros();
     let mut centres = Vec::new();
     for im in rec.images.values() {

@@ -225,7 +225,10 @@ fn pictures_under(dir: &Path, needle: &str) -> Vec<PathBuf> {
 }
 
 /// The viewer: a canvas, buttons and the script, loading `glb` (embedded base64 or a URL).
-fn viewer_section(out: &mut String, glb: GlbSource) {
+/// `up` is the world's up in the model's frame (from the cameras, see
+/// [`figures::up_direction`]): an SfM frame has no up of its own, and glTF's +Y is only a
+/// convention there; without it the viewer orbits around +Y.
+fn viewer_section(out: &mut String, glb: GlbSource, up: Option<[f64; 3]>) {
     out.push_str(r#"<canvas id="viewer" width="1040" height="520"></canvas>
 <div><button id="wire">Wireframe (W)</button><button id="home">Reset view</button>
 <span id="viewer-status">loading the model...</span></div>
@@ -241,13 +244,17 @@ fn viewer_section(out: &mut String, glb: GlbSource) {
             url, url
         ),
     };
+    let up = match up {
+        Some([x, y, z]) if (x * x + y * y + z * z).is_finite() => format!("[{x}, {y}, {z}]"),
+        _ => "null".to_string(),
+    };
     let _ = write!(
         out,
         r#"<script>{VIEWER_JS}
 (function () {{
   const canvas = document.getElementById('viewer');
   const status = document.getElementById('viewer-status');
-  {load}.then(bytes => frescoViewer(canvas, bytes, status)).then(v => {{
+  {load}.then(bytes => frescoViewer(canvas, bytes, status, {up})).then(v => {{
     window.frescoViewerResult = v;
     document.getElementById('wire').onclick = () => v.api.toggleWireframe();
     document.getElementById('home').onclick = () => v.api.reset();
@@ -275,7 +282,7 @@ pub fn viewer_page(title: &str, url: &str) -> String {
         escape(title),
         escape(title)
     );
-    viewer_section(&mut out, GlbSource::Url(url.to_string()));
+    viewer_section(&mut out, GlbSource::Url(url.to_string()), None);
     out.push_str("</body></html>");
     out
 }
@@ -504,7 +511,11 @@ pub fn write_report(plan: &Plan, s: &RunSummary) -> anyhow::Result<PathBuf> {
                 ""
             }
         );
-        viewer_section(&mut out, source);
+        let up = model.as_ref().map(|rec| {
+            let up = figures::up_direction(rec);
+            [up.x, up.y, up.z]
+        });
+        viewer_section(&mut out, source, up);
     }
     out.push_str("</body></html>");
     let path = ws.join("report.html");

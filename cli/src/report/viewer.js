@@ -4,12 +4,14 @@
 // an embedded image. Drag to orbit, wheel to zoom, shift-drag or right-drag to pan,
 // "W" or the button toggles the wireframe.
 //
-// frescoViewer(canvas, glbBytes, statusElement) returns a promise of
+// frescoViewer(canvas, glbBytes, statusElement, up) returns a promise of
 // {primitives, triangles, vertices, textures, nonBlank}; nonBlank is the fraction of canvas
 // pixels that differ from the background after the first frame (the headless test reads it).
+// `up` (optional, [x, y, z]) is the world's up in the model's frame, the axis the view orbits
+// around; glTF's +Y when it is missing.
 'use strict';
 
-async function frescoViewer(canvas, glb, status) {
+async function frescoViewer(canvas, glb, status, up) {
   const gl = canvas.getContext('webgl', { preserveDrawingBuffer: true, antialias: true });
   if (!gl) throw new Error('WebGL is not available in this browser');
   const uint32 = gl.getExtension('OES_element_index_uint');
@@ -185,6 +187,12 @@ async function frescoViewer(canvas, glb, status) {
   // --- camera ---------------------------------------------------------------------------
   const centre = [0, 1, 2].map((c) => (lo[c] + hi[c]) / 2);
   const radius = Math.max(1e-6, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
+  // The orbit's frame: `upAxis` and two horizontal axes (for +Y: x and z, as glTF's).
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const unit = (a) => { const l = Math.hypot(...a) || 1; return a.map((v) => v / l); };
+  const upAxis = unit(Array.isArray(up) && up.length === 3 && Math.hypot(...up) > 0 ? up : [0, 1, 0]);
+  const sideAxis = unit(cross(upAxis, Math.abs(upAxis[2]) < 0.9 ? [0, 0, 1] : [1, 0, 0]));
+  const frontAxis = cross(sideAxis, upAxis);
   const cam = { yaw: 0.6, pitch: 0.35, dist: 2.6 * radius, target: centre.slice() };
   const home = JSON.parse(JSON.stringify(cam));
   let wire = false;
@@ -198,15 +206,15 @@ async function frescoViewer(canvas, glb, status) {
   }
   function eye() {
     const cp = Math.cos(cam.pitch);
-    return [cam.target[0] + cam.dist * cp * Math.sin(cam.yaw),
-            cam.target[1] + cam.dist * Math.sin(cam.pitch),
-            cam.target[2] + cam.dist * cp * Math.cos(cam.yaw)];
+    const a = cp * Math.sin(cam.yaw), b = Math.sin(cam.pitch), c = cp * Math.cos(cam.yaw);
+    return [0, 1, 2].map((i) =>
+      cam.target[i] + cam.dist * (a * sideAxis[i] + b * upAxis[i] + c * frontAxis[i]));
   }
   function basis() {
     const e = eye();
     const f = [0, 1, 2].map((i) => cam.target[i] - e[i]);
     const fl = Math.hypot(...f); for (let i = 0; i < 3; i++) f[i] /= fl;
-    let r = [f[1] * 0 - f[2] * 1, f[2] * 0 - f[0] * 0, f[0] * 1 - f[1] * 0];
+    let r = cross(f, upAxis);
     const rl = Math.hypot(...r) || 1; r = r.map((v) => v / rl);
     const u = [r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]];
     return { e, f, r, u };
