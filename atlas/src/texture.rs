@@ -547,17 +547,7 @@ pub fn texture_mesh(
     Ok(summary)
 }
 
-/// Encodes `img` as PNG and writes it atomically.
+/// Encodes `img` as PNG and writes it atomically (core's writer).
 pub(crate) fn write_png(path: &Path, img: &image::DynamicImage) -> Result<(), TextureError> {
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| TextureError::Output {
-        path: path.to_path_buf(),
-        message: format!("cannot encode PNG: {e}"),
-    })?;
-    fresco_core::atomic_file::write_bytes_atomically(path, &bytes)?;
-    Ok(())
+    Ok(fresco_core::atomic_file::write_png_atomically(path, img)?)
 }

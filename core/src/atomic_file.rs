@@ -45,3 +45,21 @@ pub fn write_atomically(
 pub fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
     write_atomically(path, |w| w.write_all(bytes))
 }
+
+/// Encodes `img` as PNG and writes it atomically: the one PNG writer of the workspace's
+/// outputs (depth-map pictures, undistorted photos, atlases). An encoder failure (an image
+/// PNG cannot hold, such as a zero-sized one) is reported as an I/O error on `path`.
+pub fn write_png_atomically(path: &Path, img: &image::DynamicImage) -> Result<(), FormatError> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| {
+        FormatError::io(
+            path,
+            std::io::Error::other(format!("cannot encode PNG: {e}")),
+        )
+    })?;
+    write_bytes_atomically(path, &bytes)
+}

@@ -568,41 +568,13 @@ fn write_image(path: &Path, rgb: &RgbImage) -> Result<(), DenseError> {
 }
 
 fn write_grey_png(path: &Path, img: &GrayImage) -> Result<(), DenseError> {
-    use image::ImageEncoder;
-    let mut bytes = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut bytes)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::L8,
-        )
-        .map_err(|e| DenseError::Image {
-            name: path.display().to_string(),
-            message: format!("cannot encode: {e}"),
-        })?;
-    Ok(fresco_core::atomic_file::write_bytes_atomically(
-        path, &bytes,
-    )?)
+    let img = image::DynamicImage::ImageLuma8(img.clone());
+    Ok(fresco_core::atomic_file::write_png_atomically(path, &img)?)
 }
 
 fn write_rgb_png(path: &Path, img: &RgbImage) -> Result<(), DenseError> {
-    use image::ImageEncoder;
-    let mut bytes = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut bytes)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| DenseError::Image {
-            name: path.display().to_string(),
-            message: format!("cannot encode: {e}"),
-        })?;
-    Ok(fresco_core::atomic_file::write_bytes_atomically(
-        path, &bytes,
-    )?)
+    let img = image::DynamicImage::ImageRgb8(img.clone());
+    Ok(fresco_core::atomic_file::write_png_atomically(path, &img)?)
 }
 
 /// The grey images of the views one reference view needs, read from the undistorted images
