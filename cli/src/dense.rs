@@ -61,6 +61,11 @@ pub struct DenseArgs {
     /// Skip the second PatchMatch pass (geometric consistency): faster, less complete.
     #[arg(long)]
     pub no_geometric: bool,
+    /// Keep the plane the object stands on: by default, for object-centric captures
+    /// (cameras looking inward at one point from above), the dominant plane under the object
+    /// and everything below it are removed from the fused cloud.
+    #[arg(long)]
+    pub keep_support_plane: bool,
 }
 
 pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -125,6 +130,7 @@ pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     }
     config.view_selection.max_sources = args.max_sources;
     config.fusion.min_views = args.min_views;
+    config.fusion.support_plane.remove = !args.keep_support_plane;
     let inputs = DenseInputs {
         reconstruction: &rec,
         images: &images,

@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::patch_match::{DepthMap, Intrinsics};
+use super::support_plane::{CameraRay, SupportPlane, SupportPlaneConfig, find_support_plane};
 use super::{DenseError, DenseView};
 
 /// Fusion settings (COLMAP's `StereoFusionOptions` defaults where it has them).
@@ -47,6 +48,8 @@ pub struct FusionConfig {
     pub max_depth_error: f64,
     /// Largest angle between normals, degrees. Default 10 (COLMAP's `max_normal_error`).
     pub max_normal_deg: f64,
+    /// Removal of the plane an object stands on (`support_plane.rs`); on by default.
+    pub support_plane: SupportPlaneConfig,
 }
 
 impl Default for FusionConfig {
@@ -56,6 +59,7 @@ impl Default for FusionConfig {
             max_reproj_px: 2.0,
             max_depth_error: 0.01,
             max_normal_deg: 10.0,
+            support_plane: SupportPlaneConfig::default(),
         }
     }
 }
@@ -75,7 +79,7 @@ impl FusionConfig {
                 return Err((name, format!("{v} is not a positive number")));
             }
         }
-        Ok(())
+        self.support_plane.check()
     }
 }
 
@@ -94,7 +98,14 @@ pub struct FusionSummary {
     pub vis: PathBuf,
     /// Mean number of views per point.
     pub mean_views: f64,
+    /// Points dropped because they project outside a view's mask (visual hull carving).
+    pub outside_masks: u64,
+    /// The support plane removed, if one was found.
+    pub support_plane: Option<SupportPlane>,
 }
+
+/// A view's object mask (row-major, non-zero = object), the size of its depth map.
+pub type MaskLoader<'a> = dyn Fn(usize) -> Result<Vec<u8>, DenseError> + Sync + 'a;
 
 /// One fused point before it is written.
 struct Fused {
@@ -153,11 +164,15 @@ impl Geometry {
 
 /// Fuses the depth maps of `views` into `ply` and `<ply>.vis`. `neighbours[v]` lists the
 /// views checked against view `v`; `load(v)` reads view `v`'s maps and image (or `None` when
-/// the view has no depth map: it then contributes nothing).
+/// the view has no depth map: it then contributes nothing). With `masks` (`masks(v)`: view
+/// `v`'s object mask), the fused points are carved by the visual hull: a point that projects
+/// outside the mask of a view whose image it falls in is dropped. Then the support plane of
+/// an object-centric capture is removed (`cfg.support_plane`).
 pub fn fuse(
     views: &[DenseView],
     neighbours: &[Vec<usize>],
     load: &(dyn Fn(usize) -> Result<Option<FusionView>, DenseError> + Sync),
+    masks: Option<&MaskLoader>,
     cfg: &FusionConfig,
     ply: &Path,
     progress: &dyn Progress,
@@ -214,8 +229,73 @@ pub fn fuse(
     }
     progress.end();
     drop(cache);
-    let summary = records.finish(ply)?;
+    let (points, normals) = records.positions()?;
+    let mut keep = vec![true; points.len()];
+    let mut outside_masks = 0;
+    if let Some(masks) = masks {
+        outside_masks = carve(&points, views, &geometry, masks, &mut keep)?;
+    }
+    let mut plane = None;
+    if cfg.support_plane.remove {
+        let kept: Vec<usize> = (0..points.len()).filter(|&i| keep[i]).collect();
+        let cameras: Vec<CameraRay> = geometry
+            .iter()
+            .map(|g| CameraRay {
+                centre: Point3::from(-(g.r.transpose() * g.t)),
+                axis: g.r.row(2).transpose(),
+            })
+            .collect();
+        let p: Vec<Point3<f64>> = kept.iter().map(|&i| points[i]).collect();
+        let n: Vec<Vector3<f64>> = kept.iter().map(|&i| normals[i]).collect();
+        plane = find_support_plane(&p, &n, &cameras, &cfg.support_plane);
+        if let Some(plane) = &plane {
+            for &i in &kept {
+                keep[i] = plane.keeps(&points[i]);
+            }
+        }
+    }
+    drop((points, normals));
+    let mut summary = records.finish(ply, &keep)?;
+    summary.outside_masks = outside_masks;
+    summary.support_plane = plane;
     Ok(summary)
+}
+
+/// Visual hull carving: clears `keep` of the points outside a view's mask; returns how many
+/// were dropped. One mask in memory at a time.
+fn carve(
+    points: &[Point3<f64>],
+    views: &[DenseView],
+    geometry: &[Geometry],
+    masks: &MaskLoader,
+    keep: &mut [bool],
+) -> Result<u64, DenseError> {
+    let mut dropped = 0;
+    for (v, (view, g)) in views.iter().zip(geometry).enumerate() {
+        let mask = masks(v)?;
+        let (w, h) = (view.camera.width as usize, view.camera.height as usize);
+        let outside: Vec<usize> = points
+            .par_iter()
+            .enumerate()
+            .filter(|&(i, p)| {
+                keep[i]
+                    && g.project(&p.coords).is_some_and(|(u, v, _)| {
+                        let (x, y) = (u.round(), v.round());
+                        x >= 0.0
+                            && y >= 0.0
+                            && (x as usize) < w
+                            && (y as usize) < h
+                            && mask[y as usize * w + x as usize] == 0
+                    })
+            })
+            .map(|(i, _)| i)
+            .collect();
+        for i in outside {
+            keep[i] = false;
+            dropped += 1;
+        }
+    }
+    Ok(dropped)
 }
 
 /// The points that start at the pixels of view `r`.
@@ -315,7 +395,6 @@ struct Records {
     path: PathBuf,
     out: Option<BufWriter<File>>,
     count: u64,
-    view_sum: u64,
 }
 
 impl Records {
@@ -325,7 +404,6 @@ impl Records {
             path: path.to_path_buf(),
             out: Some(BufWriter::with_capacity(1 << 20, file)),
             count: 0,
-            view_sum: 0,
         })
     }
 
@@ -343,22 +421,40 @@ impl Records {
         out.write_all(&buf)
             .map_err(|e| FormatError::io(&self.path, e))?;
         self.count += 1;
-        self.view_sum += p.views.len() as u64;
         Ok(())
     }
 
-    /// Writes `ply` and `<ply>.vis` from the records and removes the record file.
-    fn finish(mut self, ply: &Path) -> Result<FusionSummary, DenseError> {
-        let result = self.write_outputs(ply);
+    /// Closes the record file and reads back every point's position and normal.
+    fn positions(&mut self) -> Result<(Vec<Point3<f64>>, Vec<Vector3<f64>>), DenseError> {
+        if let Some(out) = self.out.take() {
+            out.into_inner()
+                .map_err(|e| FormatError::io(&self.path, e.into_error()))?;
+        }
+        let mut reader = self.reader()?;
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        for _ in 0..self.count {
+            let (vertex, _) =
+                read_record(&mut reader).map_err(|e| FormatError::io(&self.path, e))?;
+            points.push(vertex.position);
+            normals.push(vertex.normal.unwrap_or_default());
+        }
+        Ok((points, normals))
+    }
+
+    /// Writes the points of `keep` to `ply` and `<ply>.vis` and removes the record file.
+    fn finish(mut self, ply: &Path, keep: &[bool]) -> Result<FusionSummary, DenseError> {
+        let result = self.write_outputs(ply, keep);
         let _ = std::fs::remove_file(&self.path);
         result
     }
 
-    fn write_outputs(&mut self, ply: &Path) -> Result<FusionSummary, DenseError> {
-        let out = self.out.take().expect("open until finish");
-        out.into_inner()
-            .map_err(|e| FormatError::io(&self.path, e.into_error()))?;
-        let mut layout = PlyLayout::new(PlyFormat::BinaryLittleEndian, self.count, 0);
+    fn write_outputs(&mut self, ply: &Path, keep: &[bool]) -> Result<FusionSummary, DenseError> {
+        if let Some(out) = self.out.take() {
+            out.into_inner()
+                .map_err(|e| FormatError::io(&self.path, e.into_error()))?;
+        }
+        let kept = keep.iter().filter(|&&k| k).count() as u64;
+        let mut layout = PlyLayout::new(PlyFormat::BinaryLittleEndian, kept, 0);
         layout.normals = true;
         layout.colors = true;
         layout
@@ -369,10 +465,15 @@ impl Records {
         let mut reader = self.reader()?;
         let path = self.path.clone();
         let count = self.count;
+        let mut view_sum = 0u64;
         write_atomically(&vis, |vw| {
-            vw.write_all(&count.to_le_bytes())?;
-            for _ in 0..count {
+            vw.write_all(&kept.to_le_bytes())?;
+            for i in 0..count as usize {
                 let (vertex, views) = read_record(&mut reader)?;
+                if !keep[i] {
+                    continue;
+                }
+                view_sum += views.len() as u64;
                 writer
                     .write_vertex(&vertex)
                     .map_err(|e| std::io::Error::other(e.to_string()))?;
@@ -389,14 +490,15 @@ impl Records {
         })?;
         writer.finish()?;
         Ok(FusionSummary {
-            points: self.count,
+            points: kept,
             ply: ply.to_path_buf(),
             vis,
-            mean_views: if self.count > 0 {
-                self.view_sum as f64 / self.count as f64
+            mean_views: if kept > 0 {
+                view_sum as f64 / kept as f64
             } else {
                 0.0
             },
+            ..Default::default()
         })
     }
 

@@ -24,6 +24,7 @@ pub mod fusion;
 pub mod geometric_consistency;
 pub mod patch_match;
 pub mod reference_poses;
+pub mod support_plane;
 pub mod undistort;
 pub mod view_selection;
 
@@ -43,6 +44,7 @@ pub use evaluate::{CloudQuality, EvalConfig, evaluate_cloud};
 pub use fusion::{FusionConfig, FusionSummary};
 pub use patch_match::{DepthMap, PatchMatchConfig};
 pub use reference_poses::with_reference_poses;
+pub use support_plane::{SupportPlane, SupportPlaneConfig};
 pub use view_selection::ViewSelectionConfig;
 
 use patch_match::{Intrinsics, Problem, Source, patch_match};
@@ -344,10 +346,15 @@ pub fn densify(
         let rgb = load_photo(&layout.image(&views[v].name))?.rgb;
         Ok(Some(fusion::FusionView { map, rgb }))
     };
+    let load_mask = |v: usize| -> Result<Vec<u8>, DenseError> {
+        let grey = load_photo(&layout.mask(&views[v].name))?.grey;
+        Ok(grey.data.iter().map(|&g| (g > 0.5) as u8).collect())
+    };
     summary.fusion = fusion::fuse(
         &views,
         &neighbours,
         &load,
+        has_masks.then_some(&load_mask as &fusion::MaskLoader),
         &config.fusion,
         &layout.fused(),
         progress,

@@ -53,8 +53,10 @@ use super::geometric_consistency::DepthCheck;
 pub const MAX_SOURCES: usize = 16;
 /// Cost of an impossible or unmatched hypothesis (`1 - NCC` lies in [0, 2]).
 pub const MAX_COST: f32 = 2.0;
+/// Most window samples along one side (radius 7 at step 2).
+const LANES: usize = 8;
 /// Most window samples (radius 7 at step 2: 8x8).
-const MAX_WINDOW: usize = 64;
+const MAX_WINDOW: usize = LANES * LANES;
 
 /// PatchMatch settings; see the module documentation.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -453,11 +455,11 @@ impl<'a> Solver<'a> {
             .map(|k| -r + k * step)
             .take_while(|&o| o <= r)
             .collect();
-        let mut spatial = Vec::new();
-        for &dy in &offsets {
-            for &dx in &offsets {
+        let mut spatial = vec![0.0f32; MAX_WINDOW];
+        for (j, &dy) in offsets.iter().enumerate() {
+            for (i, &dx) in offsets.iter().enumerate() {
                 let dist = ((dx * dx + dy * dy) as f32).sqrt();
-                spatial.push((-dist / cfg.sigma_spatial).exp());
+                spatial[j * LANES + i] = (-dist / cfg.sigma_spatial).exp();
             }
         }
         let checks = problem
@@ -527,29 +529,29 @@ impl<'a> Solver<'a> {
         };
         let mut values = [0.0f32; MAX_WINDOW];
         let inv_sigma_color = 1.0 / self.cfg.sigma_color;
-        let mut k = 0;
         let mut total = 0.0f32;
-        for &dy in &self.offsets {
+        // Sample (i, j) of the window lives at j * LANES + i; the unused lanes keep weight 0.
+        for (j, &dy) in self.offsets.iter().enumerate() {
             let row = ((y as i32 + dy) as usize) * w;
-            for &dx in &self.offsets {
+            for (i, &dx) in self.offsets.iter().enumerate() {
+                let k = j * LANES + i;
                 let v = img.data[row + (x as i32 + dx) as usize];
                 let weight = self.spatial[k] * (-(v - centre).abs() * inv_sigma_color).exp();
                 values[k] = v;
                 win.w[k] = weight;
                 total += weight;
-                k += 1;
             }
         }
-        let n = k;
         let inv_total = 1.0 / total;
         let mut mean = 0.0f32;
-        for (w, v) in win.w[..n].iter_mut().zip(&values[..n]) {
+        for (w, v) in win.w.iter_mut().zip(&values) {
             *w *= inv_total;
             mean += *w * v;
         }
-        let var: f32 = win.w[..n]
+        let var: f32 = win
+            .w
             .iter()
-            .zip(&values[..n])
+            .zip(&values)
             .map(|(w, v)| w * (v - mean) * (v - mean))
             .sum();
         let std = var.sqrt();
@@ -557,7 +559,7 @@ impl<'a> Solver<'a> {
             return None;
         }
         let inv_std = 1.0 / std;
-        for ((a, w), v) in win.a[..n].iter_mut().zip(&win.w[..n]).zip(&values[..n]) {
+        for ((a, w), v) in win.a.iter_mut().zip(&win.w).zip(&values) {
             *a = w * (v - mean) * inv_std;
         }
         Some(win)
@@ -589,29 +591,41 @@ impl<'a> Solver<'a> {
                 return MAX_COST;
             }
         }
+        // One window row at a time, LANES samples wide: the projective divisions and the
+        // sums vectorise; the lanes past the window's side carry weight 0.
         let step = self.cfg.window_step as f32;
-        let (dhx, dhy, dhz) = (h[0] * step, h[3] * step, h[6] * step);
         let img = &src.image.data;
         let iw = src.image.width;
-        let (mut sa, mut sw, mut sww) = (0.0f32, 0.0f32, 0.0f32);
         let m = self.offsets.len();
-        let mut k = 0;
+        let (mut cx, mut cy, mut cz) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let xx = x0 + (i.min(m - 1)) as f32 * step;
+            cx[i] = h[0] * xx;
+            cy[i] = h[3] * xx;
+            cz[i] = h[6] * xx;
+        }
+        let (mut sa, mut sw, mut sww) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
         for j in 0..m {
             let yy = y0 + j as f32 * step;
-            let mut hx = h[0] * x0 + h[1] * yy + h[2];
-            let mut hy = h[3] * x0 + h[4] * yy + h[5];
-            let mut hz = h[6] * x0 + h[7] * yy + h[8];
-            for _ in 0..m {
-                let iz = 1.0 / hz;
-                let u = hx * iz;
-                let v = hy * iz;
-                let (ui, vi) = (u as usize, v as usize);
-                let (fu, fv) = (u - ui as f32, v - vi as f32);
-                let base = vi * iw + ui;
+            let (bx, by, bz) = (h[1] * yy + h[2], h[4] * yy + h[5], h[7] * yy + h[8]);
+            let (mut us, mut vs) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for i in 0..LANES {
+                let iz = 1.0 / (cz[i] + bz);
+                us[i] = (cx[i] + bx) * iz;
+                vs[i] = (cy[i] + by) * iz;
+            }
+            let mut s = [0.0f32; LANES];
+            for i in 0..m {
+                let (u, v) = (us[i], vs[i]);
                 // SAFETY: the four corners of the warped window lie in
                 // [0, width - 1.001] x [0, height - 1.001] with positive z, so every sample
                 // (a point of their convex hull up to rounding far below the 0.001 margin)
-                // has 0 <= ui <= width - 2 and 0 <= vi <= height - 2.
+                // is finite, truncates to 0 <= ui <= width - 2 and 0 <= vi <= height - 2.
+                let (ui, vi): (usize, usize) =
+                    unsafe { (u.to_int_unchecked(), v.to_int_unchecked()) };
+                let (fu, fv) = (u - ui as f32, v - vi as f32);
+                let base = vi * iw + ui;
+                // SAFETY: as above, base + iw + 1 < width * height.
                 let (p00, p01, p10, p11) = unsafe {
                     (
                         *img.get_unchecked(base),
@@ -622,17 +636,19 @@ impl<'a> Solver<'a> {
                 };
                 let top = p00 + (p01 - p00) * fu;
                 let bottom = p10 + (p11 - p10) * fu;
-                let s = top + (bottom - top) * fv;
-                let wk = win.w[k];
-                sa += win.a[k] * s;
-                sw += wk * s;
-                sww += wk * s * s;
-                k += 1;
-                hx += dhx;
-                hy += dhy;
-                hz += dhz;
+                s[i] = top + (bottom - top) * fv;
+            }
+            let (wr, ar) = (
+                &win.w[j * LANES..(j + 1) * LANES],
+                &win.a[j * LANES..(j + 1) * LANES],
+            );
+            for i in 0..LANES {
+                sa[i] += ar[i] * s[i];
+                sw[i] += wr[i] * s[i];
+                sww[i] += wr[i] * s[i] * s[i];
             }
         }
+        let (sa, sw, sww): (f32, f32, f32) = (sa.iter().sum(), sw.iter().sum(), sww.iter().sum());
         let var = sww - sw * sw;
         if var <= 1e-10 {
             return MAX_COST;
@@ -793,40 +809,9 @@ impl<'a> Solver<'a> {
         *n
     }
 
-    /// Random planes with their costs at every active pixel.
-    fn initialise(&self, board: &mut Board) {
-        let (w, half) = (self.width(), board.half);
-        for colour in 0..2 {
-            board.cells[colour]
-                .par_chunks_mut(half)
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (i, cell) in row.iter_mut().enumerate() {
-                        let x = 2 * i + ((colour + y) & 1);
-                        if x >= w || !self.active[y * w + x] {
-                            continue;
-                        }
-                        let Some(win) = self.window(x, y) else {
-                            continue;
-                        };
-                        let mut rng = Rng::for_item(self.seed, (y * w + x) as u64);
-                        let ray = self.problem.k.ray(x as f32, y as f32);
-                        let depth = self.random_depth(&mut rng);
-                        let normal = self.random_normal(&mut rng, &ray);
-                        let cost = self.cost(x, y, depth, &normal, &win);
-                        *cell = Hyp {
-                            depth,
-                            normal,
-                            cost,
-                        };
-                    }
-                });
-        }
-    }
-
-    /// Planes from a previous pass's depth map at the same resolution (random where it has
-    /// none), with their costs under this pass's cost.
-    fn initialise_from(&self, prior: &DepthMap, board: &mut Board) {
+    /// Planes with their costs at every active pixel: those of `prior`, a previous pass's
+    /// depth map at the same resolution, where it has one; random ones elsewhere.
+    fn initialise(&self, prior: Option<&DepthMap>, board: &mut Board) {
         let (w, half) = (self.width(), board.half);
         for colour in 0..2 {
             board.cells[colour]
@@ -842,15 +827,14 @@ impl<'a> Solver<'a> {
                             continue;
                         };
                         let k = y * w + x;
-                        let (depth, normal) = if prior.depth[k] > 0.0 {
-                            (prior.depth[k], prior.normal[k])
-                        } else {
-                            let mut rng = Rng::for_item(self.seed, k as u64);
-                            let ray = self.problem.k.ray(x as f32, y as f32);
-                            (
-                                self.random_depth(&mut rng),
-                                self.random_normal(&mut rng, &ray),
-                            )
+                        let (depth, normal) = match prior {
+                            Some(p) if p.depth[k] > 0.0 => (p.depth[k], p.normal[k]),
+                            _ => {
+                                let mut rng = Rng::for_item(self.seed, k as u64);
+                                let ray = self.problem.k.ray(x as f32, y as f32);
+                                let depth = self.random_depth(&mut rng);
+                                (depth, self.random_normal(&mut rng, &ray))
+                            }
                         };
                         let cost = self.cost(x, y, depth, &normal, &win);
                         *cell = Hyp {
@@ -932,8 +916,16 @@ impl<'a> Solver<'a> {
         }
     }
 
-    /// One propagation + refinement pass over the pixels of `colour`.
-    fn sweep(&self, board: &mut Board, colour: usize, iteration: usize, step: i32) {
+    /// One propagation + refinement pass over the pixels of `colour`; `random_trials`: the
+    /// refinement also tries random depths and normals (at the coarsest scale).
+    fn sweep(
+        &self,
+        board: &mut Board,
+        colour: usize,
+        iteration: usize,
+        step: i32,
+        random_trials: bool,
+    ) {
         let (w, h, half) = (self.width(), self.height(), board.half);
         let [red, black] = &mut board.cells;
         let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
@@ -1030,14 +1022,21 @@ impl<'a> Solver<'a> {
                         self.perturb_normal(&mut rng, &best.normal, &ray, normal_amount);
                     let (d0, n0) = (best.depth, best.normal);
                     let trials = [
-                        (random_depth, n0),
-                        (d0, random_normal),
-                        (random_depth, random_normal),
                         (perturbed_depth, n0),
                         (d0, perturbed_normal),
                         (perturbed_depth, perturbed_normal),
+                        (random_depth, n0),
+                        (d0, random_normal),
+                        (random_depth, random_normal),
                     ];
-                    for (depth, normal) in trials {
+                    // Planes drawn at random only help while the search is coarse: a finer
+                    // scale or the geometric pass starts from a solution and only perturbs.
+                    let trials = if random_trials {
+                        &trials[..]
+                    } else {
+                        &trials[..3]
+                    };
+                    for &(depth, normal) in trials {
                         if depth <= 0.0 || (depth == best.depth && normal == best.normal) {
                             continue;
                         }
@@ -1148,10 +1147,10 @@ pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> Dept
         // The geometric pass: full resolution, from the first pass's planes.
         let solver = Solver::new(problem, cfg, seed ^ 0x6E0_u64);
         let mut board = Board::new(w, h);
-        solver.initialise_from(prior, &mut board);
+        solver.initialise(Some(prior), &mut board);
         for iteration in 0..cfg.geometric_iterations {
             for colour in 0..2 {
-                solver.sweep(&mut board, colour, iteration, 4 + iteration as i32);
+                solver.sweep(&mut board, colour, iteration, 4 + iteration as i32, false);
             }
         }
         return board.to_depth_map(cfg.max_cost + cfg.geometric_weight);
@@ -1204,9 +1203,10 @@ pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> Dept
         let level_seed = seed ^ (level as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
         let solver = Solver::new(&lp, cfg, level_seed);
         let mut board = Board::new(lp.image.width, lp.image.height);
+        let coarsest = coarse.is_none();
         let (iterations, first_step) = match &coarse {
             None => {
-                solver.initialise(&mut board);
+                solver.initialise(None, &mut board);
                 (cfg.iterations, 0)
             }
             Some((c, ck)) => {
@@ -1217,7 +1217,13 @@ pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> Dept
         };
         for iteration in 0..iterations {
             for colour in 0..2 {
-                solver.sweep(&mut board, colour, iteration, first_step + iteration as i32);
+                solver.sweep(
+                    &mut board,
+                    colour,
+                    iteration,
+                    first_step + iteration as i32,
+                    coarsest,
+                );
             }
         }
         coarse = Some((board, k));
