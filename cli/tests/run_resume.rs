@@ -1,7 +1,8 @@
 //! `fresco run` is resumable (issue 15): a run killed (SIGKILL) in three different stages and
 //! started again each time ends with the same bytes in every output as a run that was never
-//! interrupted, skipping the stages that were complete. Then a changed setting re-runs only
-//! the stages it reaches, and `--from` re-runs from the stage it names.
+//! interrupted, skipping the stages that were complete; moved elsewhere, the workspace still
+//! resumes. Then a changed setting re-runs only the stages it reaches, and `--from` re-runs
+//! from the stage it names.
 //!
 //! The runs use one thread, so that what is checked is what the runner adds (records,
 //! skipping, temporaries), not each stage's independence of the thread count, which the
@@ -150,6 +151,26 @@ fn killed_in_three_stages_and_resumed_gives_the_same_bytes_as_one_run() {
         "{:?}",
         statuses(&ws)
     );
+    // A workspace moved as a whole still resumes: its records write paths inside it `<ws>/..`.
+    let moved = dir.path().join("moved");
+    std::fs::rename(&ws, &moved).unwrap();
+    let out = run(&[
+        "--threads",
+        "1",
+        "run",
+        photos.to_str().unwrap(),
+        "-o",
+        moved.to_str().unwrap(),
+        "--quality",
+        "draft",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        statuses(&moved).iter().all(|(_, s)| s == "skipped"),
+        "{:?}",
+        statuses(&moved)
+    );
+    std::fs::rename(&moved, &ws).unwrap();
     // A changed output is noticed and remade.
     std::fs::write(ws.join("model.glb"), b"damaged").unwrap();
     let out = run(&[
