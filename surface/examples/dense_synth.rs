@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
 //! [--eval-only] [key=value ...]` (keys: max_image_size, geometric, scales, iterations,
-//! fine_iterations, geometric_iterations, adaptive_views, top_k, max_sources, min_views)
+//! fine_iterations, geometric_iterations, adaptive_views, top_k, max_sources, min_views,
+//! support_plane)
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -43,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "top_k" => pm.top_k = v.parse()?,
             "max_sources" => config.view_selection.max_sources = v.parse()?,
             "min_views" => config.fusion.min_views = v.parse()?,
+            "support_plane" => config.fusion.support_plane.remove = v.parse()?,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -64,6 +66,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             summary.seconds_fusion,
             summary.fusion.points
         );
+        if let Some(plane) = &summary.fusion.support_plane {
+            println!("support plane removed: {plane:?}");
+        }
+        println!("outside the masks: {}", summary.fusion.outside_masks);
     }
     let mesh = read_mesh(dataset.join("mesh.ply"))?;
     let mut reader = PlyReader::open(out.join("fused.ply"))?;

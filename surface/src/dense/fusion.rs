@@ -389,6 +389,9 @@ fn fuse_view(
     rows.into_iter().flatten().collect()
 }
 
+/// Every fused point's position and normal, in record order.
+type PositionsAndNormals = (Vec<Point3<f64>>, Vec<Vector3<f64>>);
+
 /// The temporary record file: per point 3 f32 position, 3 f32 normal, 3 u8 colour, u32 view
 /// count, u32 views.
 struct Records {
@@ -425,7 +428,7 @@ impl Records {
     }
 
     /// Closes the record file and reads back every point's position and normal.
-    fn positions(&mut self) -> Result<(Vec<Point3<f64>>, Vec<Vector3<f64>>), DenseError> {
+    fn positions(&mut self) -> Result<PositionsAndNormals, DenseError> {
         if let Some(out) = self.out.take() {
             out.into_inner()
                 .map_err(|e| FormatError::io(&self.path, e.into_error()))?;
@@ -468,9 +471,9 @@ impl Records {
         let mut view_sum = 0u64;
         write_atomically(&vis, |vw| {
             vw.write_all(&kept.to_le_bytes())?;
-            for i in 0..count as usize {
+            for &keep_it in keep.iter().take(count as usize) {
                 let (vertex, views) = read_record(&mut reader)?;
-                if !keep[i] {
+                if !keep_it {
                     continue;
                 }
                 view_sum += views.len() as u64;
