@@ -19,6 +19,10 @@ DRAFT="max_image_size=320 scales=2 iterations=4 fine_iterations=1 geometric_iter
 [ -d "$OUT/temple" ] || "$FRESCO" --quiet synth temple -o "$OUT/temple"
 echo "== synthetic temple, draft"
 /usr/bin/time -f "wall %e s, peak RSS %M kB" nice -n 19 "$SYNTH" "$OUT/temple" "$OUT/temple_draft" $DRAFT | grep -v "valid"
+# Support plane: the same object on a textured floor (with walls); the floor is removed.
+[ -d "$OUT/backdrop" ] || "$FRESCO" --quiet synth temple --views 16 --backdrop -o "$OUT/backdrop"
+echo "== synthetic temple on a floor (--backdrop), 16 views, draft"
+/usr/bin/time -f "wall %e s, user %U s, peak RSS %M kB" nice -n 19 "$SYNTH" "$OUT/backdrop" "$OUT/backdrop_draft" $DRAFT | grep -v "valid"
 if [ "${1:-}" != quick ]; then
   echo "== synthetic temple, default"
   /usr/bin/time -f "wall %e s, peak RSS %M kB" nice -n 19 "$SYNTH" "$OUT/temple" "$OUT/temple_default" | grep -v "valid"
