@@ -562,3 +562,54 @@ pub fn read_vis(path: &Path) -> Result<Vec<Vec<u32>>, FormatError> {
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fresco_core::nalgebra::UnitQuaternion;
+    use fresco_core::{CamFromWorld, Camera, Rigid3};
+
+    /// A view at `eye` looking at the origin (y down is -z world), 64x48 pixels.
+    fn view(eye: Point3<f64>) -> DenseView {
+        let camera = Camera::pinhole(1, 64, 48, 50.0, 50.0, 32.0, 24.0).unwrap();
+        let forward = -eye.coords.normalize();
+        let down = -Vector3::z();
+        let right = down.cross(&forward);
+        let m = Matrix3::from_rows(&[right.transpose(), down.transpose(), forward.transpose()]);
+        let q = UnitQuaternion::from_matrix(&m);
+        DenseView {
+            image_id: 1,
+            name: "v".into(),
+            camera,
+            cam_from_world: CamFromWorld(Rigid3::new(q, -(q * eye.coords))),
+        }
+    }
+
+    #[test]
+    fn carving_drops_exactly_the_points_outside_a_mask() {
+        // Two views on the x and y axes; the first one's mask keeps the left half of its
+        // image, the second's everything. Points on the plane x = 0 seen by both.
+        let views = [
+            view(Point3::new(4.0, 0.0, 0.0)),
+            view(Point3::new(0.0, 4.0, 0.0)),
+        ];
+        let geometry: Vec<Geometry> = views.iter().map(Geometry::of).collect();
+        let points: Vec<Point3<f64>> = (0..21)
+            .flat_map(|i| (0..21).map(move |j| (i, j)))
+            .map(|(i, j)| Point3::new(0.0, -0.5 + i as f64 / 20.0, -0.5 + j as f64 / 20.0))
+            .collect();
+        let masks = |v: usize| -> Result<Vec<u8>, DenseError> {
+            Ok((0..48 * 64)
+                .map(|k| (v == 1 || k % 64 < 32) as u8)
+                .collect())
+        };
+        let mut keep = vec![true; points.len()];
+        let dropped = carve(&points, &views, &geometry, &masks, &mut keep).unwrap();
+        for (p, &k) in points.iter().zip(&keep) {
+            let (u, _, _) = geometry[0].project(&p.coords).unwrap();
+            assert_eq!(k, u.round() < 32.0, "point {p:?} at column {u}");
+        }
+        assert_eq!(dropped as usize, keep.iter().filter(|&&k| !k).count());
+        assert!(dropped > 0 && (dropped as usize) < points.len());
+    }
+}
