@@ -141,6 +141,8 @@ pub fn find_support_plane(
         .iter()
         .step_by(facing.len().div_ceil(20_000).max(1))
         .map(|&i| points[i].coords)
+        // Far strays would only widen the histograms.
+        .filter(|p| (p - aim.coords).norm() <= 5.0 * distance)
         .collect();
     let e1 = up
         .cross(&if up.x.abs() < 0.9 {
