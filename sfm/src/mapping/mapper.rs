@@ -46,6 +46,7 @@ use crate::geometry::pnp::{PnpConfig, estimate_pose};
 use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
 use crate::geometry::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
 use crate::geometry::two_view::Correspondence;
+use crate::mapping::merge_through_matches::{join_models, similarity_through_matches};
 use crate::mapping::tracks::{PairMatches, Tracks, build_tracks};
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
@@ -157,6 +158,18 @@ pub struct MapperConfig {
     /// Default: `8.0`: the two models have not been adjusted together yet, so their drift adds to
     /// the 4 px kept after adjustment.
     pub merge_max_error_px: f64,
+    /// Models that share too few consistent points are merged through the verified pairs
+    /// between their images (`merge_through_matches.rs`: the rotation from a connecting
+    /// pair's relative pose, scale and translation from the 2D-3D correspondences of the
+    /// connecting matches). Default: `true`.
+    pub merge_through_matches: bool,
+    /// Fewest 2D-3D correspondences of the connecting matches (a keypoint of one model's
+    /// image matched to a point of the other) that one similarity must explain within
+    /// `merge_max_error_px` (and at least `retry_min_inlier_ratio` of them) for a merge
+    /// through matches. Default: `15`: as `retry_min_inliers`, the fewest correspondences
+    /// that register one image on retry, here spread over the images of two models, with 4
+    /// unknowns fitted instead of 6.
+    pub merge_min_matches: usize,
 }
 
 impl Default for MapperConfig {
@@ -186,6 +199,8 @@ impl Default for MapperConfig {
             retry_min_inlier_ratio: 0.25,
             merge_min_points: 6,
             merge_max_error_px: 8.0,
+            merge_through_matches: true,
+            merge_min_matches: 15,
         }
     }
 }
@@ -276,6 +291,12 @@ impl MapperConfig {
             "merge_min_points",
             self.merge_min_points,
             ">= 3 (a similarity's sample)",
+        )?;
+        require(
+            self.merge_min_matches >= 3,
+            "merge_min_matches",
+            self.merge_min_matches,
+            ">= 3 (the sample of scale and translation, and one check)",
         )
     }
 }
@@ -367,7 +388,7 @@ pub enum MapperError {
 // and for registration through a pair (`Builder::register_through_pair`).
 
 /// `cam2_from_cam1` (`|t| = 1`) and which of `pts` (pixels of image 1, image 2) are inliers.
-fn estimate_relative_pose(
+pub(crate) fn estimate_relative_pose(
     c1: &Camera,
     c2: &Camera,
     pts: &[(Point2<f64>, Point2<f64>)],
@@ -1975,7 +1996,20 @@ fn merge_overlapping_models(
         for i in 0..models.len() {
             for j in i + 1..models.len() {
                 let merged = ctx.timed(Phase::MergeModels, || {
-                    merge_models(&models[i].rec, &models[j].rec, &ctx.tracks, ctx.config)
+                    let (a, b) = (&models[i].rec, &models[j].rec);
+                    merge_models(a, b, &ctx.tracks, ctx.config).or_else(|| {
+                        if !ctx.config.merge_through_matches {
+                            return None;
+                        }
+                        let (a_from_b, n) =
+                            similarity_through_matches(&ctx.input.pairs, a, b, ctx.config)?;
+                        tracing::debug!(
+                            "models of {} and {} images merged through {n} connecting 2D-3D correspondences",
+                            a.images.len(),
+                            b.images.len()
+                        );
+                        Some(join_models(a, b, &a_from_b))
+                    })
                 });
                 let Some(rec) = merged else {
                     continue;
@@ -2247,6 +2281,86 @@ mod tests {
             ..config()
         };
         assert!(merge_models(&a, &b, &tracks, &strict).is_none());
+    }
+
+    /// A 16-view ring tied weakly at two opposite places (between views 8 and 9, and 16 and
+    /// 1): every point seen across a cut keeps only one observation on its minority side, and
+    /// at most `WEAK` such points per image, so no image of one half has enough
+    /// correspondences with the other half's points to register (PnP needs 30, the retry 15)
+    /// and the halves share no 3D point. As the mixed-size templeSparseRing did, the mapper
+    /// builds two models of 8; merged through the connecting matches they make one model of
+    /// all 16 views with the true poses.
+    #[test]
+    fn ring_weak_at_two_places_gives_one_model() {
+        const WEAK: usize = 6;
+        let (mut truth, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 16,
+            points: 3000,
+            noise_px: 0.3,
+            seed: 11,
+            ..Default::default()
+        });
+        let side = |id: u32| id <= 8;
+        let mut per_image: BTreeMap<u32, usize> = BTreeMap::new();
+        let mut cross = 0;
+        for p in truth.points3d.values_mut() {
+            let a: Vec<TrackElement> = p
+                .track
+                .iter()
+                .filter(|e| side(e.image_id))
+                .copied()
+                .collect();
+            let b: Vec<TrackElement> = p
+                .track
+                .iter()
+                .filter(|e| !side(e.image_id))
+                .copied()
+                .collect();
+            if a.is_empty() || b.is_empty() {
+                continue;
+            }
+            let (major, minor) = if a.len() >= b.len() { (a, b) } else { (b, a) };
+            let lone = minor[0];
+            let count = per_image.entry(lone.image_id).or_default();
+            p.track = major;
+            if *count < WEAK && p.track.len() >= 2 {
+                *count += 1;
+                cross += 1;
+                p.track.push(lone);
+            }
+        }
+        let input = input_from_tracks(&truth);
+        assert!(cross >= 30, "{cross}");
+        for pair in &input.pairs {
+            if side(pair.image1) != side(pair.image2) {
+                assert!(pair.inliers.len() < 15, "{} {}", pair.image1, pair.image2);
+            }
+        }
+        let split = map(
+            &input,
+            &MapperConfig {
+                merge_through_matches: false,
+                ..config()
+            },
+            &NoProgress,
+        )
+        .unwrap();
+        let sizes: Vec<usize> = split.models.iter().map(|m| m.images.len()).collect();
+        assert_eq!(sizes, [8, 8]);
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert_eq!(
+            out.models.len(),
+            1,
+            "{:?}",
+            out.models
+                .iter()
+                .map(|m| m.images.len())
+                .collect::<Vec<_>>()
+        );
+        let e = evaluate_poses(&out.models[0], &truth).unwrap();
+        assert_eq!(e.registered, 16);
+        assert!(e.max_rotation_deg < 0.2, "{e:?}");
+        assert!(e.max_centre_frac < 0.01, "{e:?}");
     }
 
     /// Two unrelated image sets (no match between them) give two models, each complete.

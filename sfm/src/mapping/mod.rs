@@ -6,5 +6,6 @@
 //! [`reconstruct::run_sfm`] reads it, maps, applies silhouettes and writes the models).
 
 pub mod mapper;
+mod merge_through_matches;
 pub mod reconstruct;
 pub mod tracks;
