@@ -11,7 +11,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ "${NO_BUILD:-0}" != 1 ]; then
-    cargo build --release -p fresco -p fresco-sfm --example mixed_size_photos
+    cargo build --release -p fresco
+    cargo build --release -p fresco-sfm --example mixed_size_photos
 fi
 FRESCO=target/release/fresco
 GT=datasets/templeSparseRing/templeSR_par.txt

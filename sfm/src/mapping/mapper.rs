@@ -86,7 +86,8 @@ pub struct MapperInput {
 /// Mapper settings; defaults follow COLMAP's incremental mapper where it has one.
 #[derive(Clone, Debug, Serialize)]
 pub struct MapperConfig {
-    /// Fewest verified inliers of an initial pair. Default: `100`.
+    /// Fewest verified inliers of an initial pair; when no pair starts a model, halved once
+    /// (but not below `init_min_points`), as COLMAP relaxes its initialisation. Default: `100`.
     pub init_min_inliers: usize,
     /// Smallest median triangulation angle of an initial pair, degrees. Default: `16.0` (COLMAP's);
     /// halved once if no pair reaches it.
@@ -1451,11 +1452,15 @@ fn initial_model<'a>(
         .map(|p| p.inliers.len())
         .max()
         .unwrap_or(0);
-    candidates.retain(|p| p.inliers.len() >= config.init_min_inliers);
+    // COLMAP relaxes its initialisation once when no model starts: half the inliers, half
+    // the angle (IncrementalPipeline, "relax initialization constraints").
+    let relaxed_inliers =
+        (config.init_min_inliers / 2).max(config.init_min_points.min(config.init_min_inliers));
+    candidates.retain(|p| p.inliers.len() >= relaxed_inliers);
     if candidates.is_empty() {
         return Ok(Err(Degeneracy::TooFewMatches {
             best_pair_inliers: best_inliers,
-            needed: config.init_min_inliers,
+            needed: relaxed_inliers,
         }));
     }
     let n_enough = candidates.len();
@@ -1470,8 +1475,13 @@ fn initial_model<'a>(
             .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
     });
     let mut best_angle: f64 = 0.0;
-    for min_angle in [config.init_min_angle_deg, 0.5 * config.init_min_angle_deg] {
-        for pair in candidates.iter().take(config.init_max_trials) {
+    for (min_inliers, min_angle) in [
+        (config.init_min_inliers, config.init_min_angle_deg),
+        (config.init_min_inliers, 0.5 * config.init_min_angle_deg),
+        (relaxed_inliers, 0.5 * config.init_min_angle_deg),
+    ] {
+        let pairs = candidates.iter().filter(|p| p.inliers.len() >= min_inliers);
+        for pair in pairs.take(config.init_max_trials) {
             match try_initial_pair(ctx, used, pair, min_angle)? {
                 InitAttempt::Ok(b) => return Ok(Ok(b)),
                 InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
