@@ -25,9 +25,12 @@
 //!    correspondences);
 //! 5. a final global BA; if images are left that can start a model of their own, the next
 //!    model is built from them. Models sharing tracks are merged (a similarity from their
-//!    common points by Umeyama in RANSAC, two-way reprojection checks), adjusted and grown
-//!    again. Models are returned largest first; input that cannot start any model is reported
-//!    as degenerate, with the reason.
+//!    common points by Umeyama in RANSAC, two-way reprojection checks); models sharing too few
+//!    consistent points are merged through the verified pairs between their images
+//!    (`merge_through_matches.rs`: rotation from a connecting pair or an image's PnP pose,
+//!    scale and translation from the connecting 2D-3D correspondences). A merged model is
+//!    adjusted and grown again. Models are returned largest first; input that cannot start
+//!    any model is reported as degenerate, with the reason.
 
 use fresco_core::config::{ConfigError, require};
 use std::cell::RefCell;
@@ -2413,6 +2416,38 @@ mod tests {
         assert_eq!(out.models[1].images.len(), 6);
         assert!(out.models[1].images.keys().all(|&id| id > 100));
         assert!(out.unregistered.is_empty());
+        // Chance "verified" pairs between the sets (40 random matches each, as repeated texture
+        // can give): no similarity explains their correspondences, the models stay apart.
+        let mut rng = Rng::new(5);
+        for (x, y) in [(1, 101), (2, 102), (3, 103)] {
+            let (nx, ny) = (
+                ia.images
+                    .iter()
+                    .find(|im| im.id == x)
+                    .unwrap()
+                    .keypoints
+                    .len(),
+                ia.images
+                    .iter()
+                    .find(|im| im.id == y)
+                    .unwrap()
+                    .keypoints
+                    .len(),
+            );
+            ia.pairs.push(MapperPair {
+                image1: x,
+                image2: y,
+                homography: false,
+                cam2_from_cam1: None,
+                inliers: (0..40)
+                    .map(|_| [rng.below(nx) as u32, rng.below(ny) as u32])
+                    .collect(),
+            });
+        }
+        let out = map(&ia, &config(), &NoProgress).unwrap();
+        let sizes: Vec<usize> = out.models.iter().map(|m| m.images.len()).collect();
+        assert_eq!(sizes, [8, 6]);
+        assert!(out.models[1].images.keys().all(|&id| id > 100));
     }
 
     /// Cameras that only rotate about one centre: reported as degenerate (no parallax), and
