@@ -17,7 +17,10 @@
 //! - (b) focal 0.5x the prior: no model (the initial pairs' poses under a focal prior twice
 //!   too long triangulate too few points): focal from F before mapping is what is missing;
 //! - (c) weak at two places: one model of 16 (met), rotation median 0.51, max 0.72 deg (0.5
-//!   asked), focal 7.8% off.
+//!   asked), focal 7.8% off;
+//! - the undamaged ring itself (`plain_ring_reference`): one model of 16, rotation median
+//!   0.38, max 0.77 deg, focal 362 px against 384 (5.7% off): at 320x240 on this torus the
+//!   self-calibration, not the weak links, limits (c)'s accuracy.
 
 use std::path::Path;
 
@@ -135,5 +138,13 @@ fn ring_weak_at_two_opposite_places() {
         }
     };
     let (sfm, e, _) = reconstruct(&scene(|_| {}), weaken);
+    assert_one_accurate_model(&sfm, &e);
+}
+
+/// The undamaged ring of the cases above (reference for their accuracy figures).
+#[test]
+#[ignore = "not met at 320x240: rotation max 0.77 deg (see the module documentation)"]
+fn plain_ring_reference() {
+    let (sfm, e, _) = reconstruct(&scene(|_| {}), |_| {});
     assert_one_accurate_model(&sfm, &e);
 }
