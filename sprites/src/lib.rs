@@ -20,6 +20,7 @@
 pub mod bake;
 pub mod blend;
 pub mod error;
+pub(crate) mod lookup;
 pub mod octree;
 pub mod pattern;
 pub mod pipeline;

@@ -1,5 +1,6 @@
 //! The tree lookup equals a brute-force evaluation over all sprites (issue 16's first "must
-//! show"), for every blend mode and N = 2, 4, 8, and stays so through deletions and updates;
+//! show"), for every blend mode and N = 2, 4, 8, one query at a time and in batches in surface
+//! order (`lookup_many`), and stays so through deletions and updates;
 //! insertion failures are errors that leave the tree unchanged.
 
 use fresco_core::Rng;
@@ -126,6 +127,27 @@ fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
         );
         covered += (a[3] > 0.0) as usize;
     }
+    // Surface order through lookup_many: walks of small steps over the sphere, so that
+    // consecutive queries share cells (and the descent), crossing cell borders now and then.
+    let mut walk = Vec::new();
+    for _ in 0..count / 200 {
+        let mut q = random_query(rng);
+        let step = unit(rng).map(|v| v as f32 * 2e-3);
+        for _ in 0..200 {
+            q.p = [0, 1, 2].map(|a| q.p[a] + step[a]);
+            walk.push(q);
+        }
+    }
+    let mut out = vec![[0f32; 4]; walk.len()];
+    tree.lookup_many(&walk, &mut out);
+    for (q, a) in walk.iter().zip(&out) {
+        let b = tree.brute_force(&order, q);
+        assert_eq!(
+            a.map(f32::to_bits),
+            b.map(f32::to_bits),
+            "lookup_many {q:?}: {a:?} vs {b:?}"
+        );
+    }
     covered
 }
 
@@ -171,6 +193,8 @@ fn deletions_and_updates_keep_lookups_exact_and_the_tree_minimal() {
             }
         }
         let before = t.memory();
+        // Lookups before the changes (the lookup layout is built), then after them.
+        assert_equal(&t, &mut rng, 1_000);
         // Delete every third sprite, move or rescale every other one.
         for (k, &id) in ids.iter().enumerate() {
             if k % 3 == 0 {
