@@ -6,8 +6,10 @@
 //!
 //! Entry points:
 //! - [`SpriteTree`] (`tree.rs`): the N^3-tree (indirection pool shared with octree textures),
-//!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] and the brute-force
-//!   reference, [`SpriteTree::memory`];
+//!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] (and
+//!   [`SpriteTree::lookup_many`] for queries in surface order, on the CPU lookup layout of
+//!   `lookup.rs`: 8 sprites tested at once in SIMD lanes) and the brute-force reference,
+//!   [`SpriteTree::memory`];
 //! - [`Sprite`], [`Placement`], [`BlendMode`] (`sprite.rs`), [`Pattern`] (`pattern.rs`),
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
 //! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
