@@ -9,7 +9,8 @@
 //!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] (and
 //!   [`SpriteTree::lookup_many`] for queries in surface order, on the CPU lookup layout of
 //!   `lookup.rs`: 8 sprites tested at once in SIMD lanes) and the brute-force reference,
-//!   [`SpriteTree::memory`];
+//!   [`SpriteTree::memory`]; [`tree_mip::TreeMip`]: tree mip-mapping (cell means for distant
+//!   views);
 //! - [`Sprite`], [`Placement`], [`BlendMode`] (`sprite.rs`), [`Pattern`] (`pattern.rs`),
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
 //! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
@@ -30,6 +31,7 @@ pub mod render;
 pub mod scene;
 pub mod sprite;
 pub mod tree;
+pub mod tree_mip;
 
 pub use blend::{BlendConfig, Footprint, Query};
 pub use error::{Result, SpriteError};

@@ -515,7 +515,7 @@ impl SpriteTree {
 
     /// Fixed-point coordinates of `p` (world units), or `None` outside the tree's cube.
     #[inline]
-    fn fixed_inside(&self, p: [f32; 3]) -> Option<[u32; 3]> {
+    pub fn fixed_inside(&self, p: [f32; 3]) -> Option<[u32; 3]> {
         let mut f = [0u32; 3];
         let inv = 1.0 / self.size;
         for a in 0..3 {
