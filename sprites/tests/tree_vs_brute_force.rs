@@ -318,8 +318,8 @@ fn tree_mip_means_equal_brute_force_cell_averages() {
             };
             let c = t.brute_force(&order, q);
             let g = groups.entry(f.map(|v| v >> shift)).or_default();
-            for k in 0..4 {
-                g.0[k] += c[k] as f64;
+            for (s, v) in g.0.iter_mut().zip(c) {
+                *s += v as f64;
             }
             g.1 += 1;
         }
