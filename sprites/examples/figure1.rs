@@ -16,6 +16,7 @@ use fresco_sprites::octree::{self, OctreeConfig};
 use fresco_sprites::pipeline::{self, View};
 use fresco_sprites::render::{RenderConfig, Rest, downsample, orbit_camera, psnr, render};
 use fresco_sprites::scene::Scene;
+use fresco_sprites::tree_mip::TreeMip;
 use fresco_sprites::{Footprint, Query, SpriteTree};
 use rayon::prelude::*;
 
@@ -94,10 +95,10 @@ fn main() {
             .count();
         let s_rate = rate_many(&surface, &tree);
         let r_rate = rate(&random, &|q| tree.lookup(q));
+        let f = |r: (f64, f64)| format!("{:.1} ({:.1})", r.0 / 1e6, r.1 / 1e6);
         if *case == "gears" {
             // The goal case: every lookup path in both orders, the one before this layout
             // (lookup_plain) included.
-            let f = |r: (f64, f64)| format!("{:.1} ({:.1})", r.0 / 1e6, r.1 / 1e6);
             for (order, qs) in [("surface", &surface), ("random", &random)] {
                 notes.push(format!(
                     "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (before) {}, lookup {}, lookup_many {}",
@@ -106,6 +107,17 @@ fn main() {
                     f(rate_many(qs, &tree)),
                 ));
             }
+            // Tree mip-mapping (section 6): cell means from the surface points, then
+            // lookups whose footprint is a level-1 cell (a distant view) stop there.
+            let t = Instant::now();
+            let mip = TreeMip::new(&tree, &surface);
+            let built = t.elapsed().as_secs_f64();
+            let width = (tree.cube().1 / (m.n as f64 * m.n as f64)) as f32;
+            notes.push(format!(
+                "{case}, tree mip-mapping: cell means from the {} surface points in {built:.2} s wall; random order with a level-1 footprint ({width:.3} world units) {} Mlookups/s wall (per CPU-s x threads)",
+                surface.len(),
+                f(rate(&random, &|q| mip.lookup(&tree, q, width))),
+            ));
         }
         // The 2D texture with the sprites' texel density over the whole surface (RGBA8).
         let mut dens: Vec<f64> = tree
