@@ -1,7 +1,8 @@
 //! `fresco run` is resumable (issue 15): a run killed (SIGKILL) in three different stages and
 //! started again each time ends with the same bytes in every output as a run that was never
-//! interrupted, skipping the stages that were complete. Then a changed setting re-runs only
-//! the stages it reaches, and `--from` re-runs from the stage it names.
+//! interrupted, skipping the stages that were complete; moved elsewhere, the workspace still
+//! resumes. Then a changed setting re-runs only the stages it reaches, and `--from` re-runs
+//! from the stage it names.
 //!
 //! The runs use one thread, so that what is checked is what the runner adds (records,
 //! skipping, temporaries), not each stage's independence of the thread count, which the
@@ -28,6 +29,14 @@ fn outputs(ws: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>>
                 || s == "dense/summary.json")
         })
         .collect()
+}
+
+/// `fresco --threads 1 run <photos> -o <ws> --quality draft <extra>`, to its end.
+fn run_draft(photos: &Path, ws: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["--threads", "1", "run", photos.to_str().unwrap()];
+    args.extend(["-o", ws.to_str().unwrap(), "--quality", "draft"]);
+    args.extend(extra);
+    run(&args)
 }
 
 /// Starts a run and kills it (SIGKILL) once stage `stage` has started and shown progress;
@@ -77,16 +86,7 @@ fn killed_in_three_stages_and_resumed_gives_the_same_bytes_as_one_run() {
     assert!(out.status.success(), "{}", stderr(&out));
     let photos = syn.join("images");
     let whole = dir.path().join("whole");
-    let out = run(&[
-        "--threads",
-        "1",
-        "run",
-        photos.to_str().unwrap(),
-        "-o",
-        whole.to_str().unwrap(),
-        "--quality",
-        "draft",
-    ]);
+    let out = run_draft(&photos, &whole, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let reference = outputs(&whole);
     assert!(reference.contains_key(Path::new("model.glb")));
@@ -99,16 +99,7 @@ fn killed_in_three_stages_and_resumed_gives_the_same_bytes_as_one_run() {
             "a killed stage has no record"
         );
     }
-    let out = run(&[
-        "--threads",
-        "1",
-        "run",
-        photos.to_str().unwrap(),
-        "-o",
-        ws.to_str().unwrap(),
-        "--quality",
-        "draft",
-    ]);
+    let out = run_draft(&photos, &ws, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     // Only the stage killed last (and those after it) ran in the final run.
     let st = statuses(&ws);
@@ -134,52 +125,34 @@ fn killed_in_three_stages_and_resumed_gives_the_same_bytes_as_one_run() {
     }
 
     // Nothing changed: everything is skipped.
-    let out = run(&[
-        "--threads",
-        "1",
-        "run",
-        photos.to_str().unwrap(),
-        "-o",
-        ws.to_str().unwrap(),
-        "--quality",
-        "draft",
-    ]);
+    let out = run_draft(&photos, &ws, &[]);
     assert!(out.status.success());
     assert!(
         statuses(&ws).iter().all(|(_, s)| s == "skipped"),
         "{:?}",
         statuses(&ws)
     );
+    // A workspace moved as a whole still resumes: its records write paths inside it `<ws>/..`.
+    let moved = dir.path().join("moved");
+    std::fs::rename(&ws, &moved).unwrap();
+    let out = run_draft(&photos, &moved, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        statuses(&moved).iter().all(|(_, s)| s == "skipped"),
+        "{:?}",
+        statuses(&moved)
+    );
+    std::fs::rename(&moved, &ws).unwrap();
     // A changed output is noticed and remade.
     std::fs::write(ws.join("model.glb"), b"damaged").unwrap();
-    let out = run(&[
-        "--threads",
-        "1",
-        "run",
-        photos.to_str().unwrap(),
-        "-o",
-        ws.to_str().unwrap(),
-        "--quality",
-        "draft",
-    ]);
+    let out = run_draft(&photos, &ws, &[]);
     assert!(out.status.success());
     assert_eq!(
         std::fs::read(ws.join("model.glb")).unwrap(),
         reference[Path::new("model.glb")]
     );
     // --from re-runs from that stage on.
-    let out = run(&[
-        "--threads",
-        "1",
-        "run",
-        photos.to_str().unwrap(),
-        "-o",
-        ws.to_str().unwrap(),
-        "--quality",
-        "draft",
-        "--from",
-        "unwrap",
-    ]);
+    let out = run_draft(&photos, &ws, &["--from", "unwrap"]);
     assert!(out.status.success());
     let st = statuses(&ws);
     assert_eq!(st[5], ("unwrap".to_string(), "ran".to_string()), "{st:?}");

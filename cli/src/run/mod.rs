@@ -167,8 +167,8 @@ fn why_run(
     let Some(rec) = record::read_record(&plan.ws, stage.name) else {
         return Ok(Some("not run before".into()));
     };
-    let inputs = record::fingerprints(&(stage.inputs)(plan)?)?;
-    let outputs = record::fingerprints(&(stage.outputs)(plan))?;
+    let inputs = record::fingerprints(&(stage.inputs)(plan)?, &plan.ws)?;
+    let outputs = record::fingerprints(&(stage.outputs)(plan), &plan.ws)?;
     Ok(record::mismatch(&rec, build, settings, &inputs, &outputs))
 }
 
@@ -182,13 +182,13 @@ fn execute(
     ctx: &crate::Context,
 ) -> anyhow::Result<record::StageRecord> {
     record::remove_record(&plan.ws, stage.name)?;
-    let inputs = record::fingerprints(&(stage.inputs)(plan)?)?;
+    let inputs = record::fingerprints(&(stage.inputs)(plan)?, &plan.ws)?;
     let meter = memory::Meter::start();
     let t0 = Instant::now();
     let summary = (stage.execute)(plan, argv, ctx)?;
     let seconds = t0.elapsed().as_secs_f64();
     let peak = meter.stop();
-    let outputs = record::fingerprints(&(stage.outputs)(plan))?;
+    let outputs = record::fingerprints(&(stage.outputs)(plan), &plan.ws)?;
     if let Some((path, _)) = outputs.iter().find(|(_, f)| *f == "missing") {
         bail!("internal: the stage did not write {path}");
     }
@@ -276,6 +276,7 @@ fn run_chain(
         };
         let argv = (stage.argv)(plan);
         let result = (stage.settings)(&argv).and_then(|settings| {
+            let settings = record::portable(&settings, &plan.ws);
             match why_run(stage, plan, forced, &build, &settings)? {
                 None => Ok((None, settings)),
                 Some(reason) => Ok((Some(reason), settings)),

@@ -8,6 +8,9 @@
 //! ones it wrote. The record is written last, atomically, and removed before the stage starts:
 //! a stage killed half way has no record and runs again from the start.
 //!
+//! Paths inside the workspace are recorded relative to it (`<ws>/dense`), so a workspace that
+//! is moved or renamed as a whole still resumes.
+//!
 //! A fingerprint is a 128-bit hash of a file's bytes (two SplitMix64-mixed lanes over 8-byte
 //! words, `fresco_core::rng::splitmix64`), or of a folder's files with their relative names,
 //! in name order. Hidden entries (names starting with `.`: temporaries of atomic writes) are
@@ -34,7 +37,8 @@ pub struct StageRecord {
     pub fresco_build: String,
     /// Every setting of the stage, as its parsed arguments print.
     pub settings: String,
-    /// Fingerprint of each input (path as given to the stage -> hash, "missing" if absent).
+    /// Fingerprint of each input (path as given to the stage, `<ws>` for the workspace folder
+    /// -> hash, "missing" if absent).
     pub inputs: BTreeMap<String, String>,
     /// Fingerprint of each output.
     pub outputs: BTreeMap<String, String>,
@@ -213,12 +217,21 @@ pub fn fingerprint(path: &Path) -> anyhow::Result<String> {
     }
 }
 
-/// Fingerprints of several paths, keyed by their display form.
-pub fn fingerprints(paths: &[PathBuf]) -> anyhow::Result<BTreeMap<String, String>> {
+/// Fingerprints of several paths, keyed by their display form with the workspace folder
+/// written `<ws>` (see [`portable`]).
+pub fn fingerprints(paths: &[PathBuf], ws: &Path) -> anyhow::Result<BTreeMap<String, String>> {
     paths
         .iter()
-        .map(|p| Ok((p.display().to_string(), fingerprint(p)?)))
+        .map(|p| Ok((portable(&p.display().to_string(), ws), fingerprint(p)?)))
         .collect()
+}
+
+/// `text` (a path or a stage's settings) with every occurrence of the workspace folder
+/// written `<ws>`, so that a workspace moved or renamed as a whole keeps records that match:
+/// what a stage reads and writes inside the workspace is the same wherever the folder is.
+/// Paths outside it (the photos, --mesh, --colmap) stay absolute: moving those is a change.
+pub fn portable(text: &str, ws: &Path) -> String {
+    text.replace(&ws.display().to_string(), "<ws>")
 }
 
 /// Fingerprint of the running fresco executable ("unknown" if it cannot be read).
