@@ -12,6 +12,14 @@
 # tool (no open library does this): the anchor is the paper's timings (25k vertices:
 # segmentation < 1 s, extraction 1-2 s, 25-30 EM steps of 2-5 s each, 3 GHz Core 2).
 #
+# Times: wall seconds of the resize (everything but the measurement) and its CPU seconds
+# (user + system, all threads: what the machine's load changes least; under load rayon's
+# idle workers add spinning, RAYON_NUM_THREADS=1 gives the work alone).
+#
+# BIG=1 also runs the million-face case: the threaded cylinder at 800 segments (1.02M faces,
+# thread scaled to the same size in edges), texture method, without the measurement; prints
+# its phases, wall and CPU seconds and peak memory (goal: under 60 s on 2 cores).
+#
 # Usage: bench/geotex.sh            (MODELS="threaded-cylinder" METHODS="texture" to narrow)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +31,8 @@ trap 'rm -rf "$TMP"' EXIT
 mkdir -p bench/pictures
 MODELS=${MODELS:-"threaded-cylinder bumpy-box scaly-blob"}
 METHODS=${METHODS:-"texture kraevoy uniform"}
-printf '%-18s %-8s %-11s %7s %7s %7s %7s %9s %8s %9s %7s %6s\n' \
-    model method feature truth in out out/in base_rms resize_s measure_s peak_MB load
+printf '%-18s %-8s %-11s %7s %7s %7s %7s %9s %8s %8s %9s %7s %6s\n' \
+    model method feature truth in out out/in base_rms resize_s resize_cpu measure_s peak_MB load
 for model in $MODELS; do
     for method in $METHODS; do
         nice -n 19 /usr/bin/time -f '%M' -o "$TMP/rss" "$BENCH" "$model" "$method" \
@@ -48,14 +56,30 @@ for a, b in zip(m["input"]["regions"], m["output"]["regions"]):
         ratio = o / i if (i and o) else float("nan")
         print(f"{model:<18} {method:<8} {'r'+str(a['region'])+' '+name:<11} {fmt(t):>7} "
               f"{fmt(i):>7} {fmt(o):>7} {ratio:7.3f} {m['base_error']['rms']:9.2e} "
-              f"{r['seconds']['resize']:8.2f} {r['seconds']['measurement']:9.2f} "
+              f"{r['seconds']['resize']:8.2f} {r['cpu_seconds']['resize']:8.2f} "
+              f"{r['seconds']['measurement']:9.2f} "
               f"{rss/1024:7.0f} {load:>6}")
-s = r["seconds"]
-print(f"{'':<18} {method:<8} phases (s): curvature {s['curvature']:.2f}, segmentation "
-      f"{s['segmentation']:.2f}, extraction {s['extraction']:.2f}, grid {s['grid']:.2f}, "
-      f"refinement {s['refinement']:.2f}, synthesis {s['synthesis']:.2f}; "
-      f"{r['input_vertices']} -> {r['output_vertices']} vertices; truth {truth}")
+c = r["cpu_seconds"]
+print(f"{'':<18} {method:<8} phases (CPU-s): curvature {c['curvature']:.2f}, segmentation "
+      f"{c['segmentation']:.2f}, extraction {c['extraction']:.2f}, grid {c['grid']:.2f}, "
+      f"refinement {c['refinement']:.2f}, synthesis {c['synthesis']:.2f}, measurement "
+      f"{c['measurement']:.2f}; {r['input_vertices']} -> {r['output_vertices']} vertices; "
+      f"truth {truth}")
 PY
     done
 done
+if [ "${BIG:-0}" = 1 ]; then
+    nice -n 19 /usr/bin/time -f '%M' -o "$TMP/rss" "$BENCH" threaded-cylinder-1m texture \
+        "$TMP/big.png" --no-measure > "$TMP/run.json"
+    python3 - "$TMP/run.json" "$(cat "$TMP/rss")" "$(cut -d' ' -f1 /proc/loadavg)" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))["report"]
+s, c = r["seconds"], r["cpu_seconds"]
+print(f"threaded-cylinder-1m texture: {r['input_faces']} faces, {r['input_vertices']} -> "
+      f"{r['output_vertices']} vertices; resize {s['resize']:.1f} s wall, {c['resize']:.1f} "
+      f"CPU-s; peak {int(sys.argv[2]) / 1024:.0f} MB; load {sys.argv[3]}")
+print("  phases (CPU-s): " + ", ".join(f"{k} {v:.1f}" for k, v in c.items()
+                                          if k not in ("resize", "measurement")))
+PY
+fi
 echo "end $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"

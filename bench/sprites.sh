@@ -7,7 +7,9 @@
 # pictures in bench/pictures/sprites_*.png. There is no reference tool: the anchors are the
 # paper's own tables.
 #
-# Usage: bench/sprites.sh          (QUICK=1: fewer lookups per pass)
+# Usage: bench/sprites.sh          (QUICK=1: fewer lookups per pass; CASES=gears,...: only those
+#        sprite cases, no octree/bake). Lookup profile on one thread, the paths before/after the
+#        lookup layout in turn: target/release/examples/figure1 --profile surface|random [PASSES]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 echo "start $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"

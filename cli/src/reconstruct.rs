@@ -84,6 +84,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             per_image_camera: false,
             init_min_inliers: SfmConfig::default().mapper.init_min_inliers,
             refine_principal_point: args.refine_principal_point,
+            no_merge_through_matches: false,
         },
         ctx,
     )?;

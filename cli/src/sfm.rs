@@ -34,6 +34,10 @@ pub struct SfmArgs {
     /// several sides determine it, and even then the estimate absorbs unmodelled lens effects.
     #[arg(long)]
     pub refine_principal_point: bool,
+    /// Keep models that share too few 3D points apart instead of merging them through the
+    /// verified pairs between their images (for comparisons; merging is on by default).
+    #[arg(long)]
+    pub no_merge_through_matches: bool,
 }
 
 pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -58,6 +62,7 @@ pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
     };
     config.mapper.init_min_inliers = args.init_min_inliers;
     config.mapper.bundle.refine_principal_point = args.refine_principal_point;
+    config.mapper.merge_through_matches = !args.no_merge_through_matches;
     let bars = crate::progress::Bars::new(ctx);
     // Every SfmError names the workspace or the file at fault: the context does not repeat it.
     let summary = run_sfm(&args.workspace, &config, &bars).context("structure from motion")?;

@@ -357,6 +357,29 @@ impl<const K: usize> FeatureIndex<K> {
             })
             .collect()
     }
+
+    /// At most `k` nearest features within `radius` of `q`, nearest first; empty for a
+    /// non-finite query or a negative or NaN radius. A tight radius (a candidate already
+    /// known, as in texture synthesis) prunes most of the tree.
+    pub fn k_nearest_within(&self, q: &[f32; K], k: usize, radius: f64) -> Vec<Neighbour> {
+        let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZeroUsize::new(k)) else {
+            return Vec::new();
+        };
+        if q.iter().any(|c| !c.is_finite()) || radius.is_nan() || radius < 0.0 {
+            return Vec::new();
+        }
+        let r2 = (radius * radius).min(f32::MAX as f64) as f32;
+        tree.query(q)
+            .nearest_n::<SquaredEuclidean<f32>>(k)
+            .within(r2)
+            .execute()
+            .into_iter()
+            .map(|r| Neighbour {
+                index: r.item,
+                distance: (r.distance as f64).sqrt(),
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -548,8 +571,16 @@ mod tests {
             for (g, w) in got.iter().zip(&want) {
                 assert!((g.distance - w).abs() < 1e-5);
             }
+            // Within a radius between the 3rd and 4th nearest: exactly the first three.
+            let radius = 0.5 * (want[2] + want[3]);
+            let within = index.k_nearest_within(&q, 5, radius);
+            assert_eq!(within.len(), 3);
+            for (g, w) in within.iter().zip(&want) {
+                assert!((g.distance - w).abs() < 1e-5);
+            }
         }
         assert!(index.k_nearest(&[f32::NAN; 8], 3).is_empty());
+        assert!(index.k_nearest_within(&[0.5; 8], 3, f64::NAN).is_empty());
         assert!(
             FeatureIndex::<8>::build(&[])
                 .unwrap()

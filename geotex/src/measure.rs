@@ -107,8 +107,10 @@ fn region_features(
 
 /// The period maximising the periodogram `Σ_lines |Σ_k (t_k − t̄) e^{−2πi x_k / T}|² / n`
 /// over lines of vertices parallel to axis `a` (vertices binned by their other two
-/// coordinates in cells of two edges); `None` when the region spans less than three
-/// candidate periods or the peak does not stand out (below four times the median power).
+/// coordinates in cells of two edges), scanned at evenly spaced frequencies between three
+/// edges and a third of the region's span and refined around the peak; `None` when the
+/// region spans less than three candidate periods or the peak does not stand out (below
+/// four times the median power).
 fn dominant_period(mesh: &Mesh, members: &[usize], t: &[f64], a: usize, edge: f64) -> Option<f64> {
     let (u, v) = ((a + 1) % 3, (a + 2) % 3);
     let cell = 2.0 * edge;
@@ -143,48 +145,73 @@ fn dominant_period(mesh: &Mesh, members: &[usize], t: &[f64], a: usize, edge: f6
     if lines.is_empty() {
         return None;
     }
-    let power = |period: f64| -> f64 {
-        let w = std::f64::consts::TAU / period;
-        lines
-            .iter()
-            .map(|l| {
-                let (mut re, mut im) = (0.0, 0.0);
-                for &(x, y) in l {
-                    let (s, c) = (w * x).sin_cos();
-                    re += y * c;
-                    im += y * s;
-                }
-                (re * re + im * im) / l.len() as f64
-            })
-            .sum()
-    };
-    // Log-spaced scan, then a finer scan around the best.
-    let steps = 240;
-    let ratio = (longest / shortest).powf(1.0 / steps as f64);
-    let scan: Vec<(f64, f64)> = (0..=steps)
-        .into_par_iter()
-        .map(|k| {
-            let period = shortest * ratio.powi(k);
-            (period, power(period))
-        })
+    // Positions relative to the region's start keep the phases small.
+    let lines: Vec<Vec<(f64, f64)>> = lines
+        .into_iter()
+        .map(|l| l.into_iter().map(|(x, y)| (x - lo, y)).collect())
         .collect();
-    let mut sorted: Vec<f64> = scan.iter().map(|x| x.1).collect();
+    // Frequencies 1/longest ..= 1/shortest evenly spaced, then a finer scan around the best.
+    let steps = 480;
+    let (f_lo, f_hi) = (1.0 / longest, 1.0 / shortest);
+    let df = (f_hi - f_lo) / steps as f64;
+    let scan = periodogram(&lines, f_lo, df, steps + 1);
+    let mut sorted = scan.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted[sorted.len() / 2];
-    let (best, peak) = scan.iter().copied().max_by(|x, y| x.1.total_cmp(&y.1))?;
+    let (best, peak) = scan
+        .iter()
+        .copied()
+        .enumerate()
+        .max_by(|x, y| x.1.total_cmp(&y.1))?;
     if peak.partial_cmp(&(4.0 * median)) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
-    let fine: Vec<(f64, f64)> = (0..=200)
-        .into_par_iter()
-        .map(|k| {
-            let period = best / ratio + (best * ratio - best / ratio) * k as f64 / 200.0;
-            (period, power(period))
+    let fine_steps = 200;
+    let f_best = f_lo + best as f64 * df;
+    let start = (f_best - df).max(0.5 * f_lo);
+    let step = (f_best + df - start) / fine_steps as f64;
+    let fine = periodogram(&lines, start, step, fine_steps + 1);
+    let (k, _) = fine
+        .into_iter()
+        .enumerate()
+        .max_by(|x, y| x.1.total_cmp(&y.1))?;
+    Some(1.0 / (start + step * k as f64))
+}
+
+/// `Σ_lines |Σ_k y_k e^{−2πi f x_k}|² / n` at the `count` frequencies `f0 + j df`: each
+/// point's phasor advances by a rotation per frequency step (no sine or cosine in the
+/// loop); frequencies in parallel chunks, each summed in the same order whatever the
+/// thread count.
+fn periodogram(lines: &[Vec<(f64, f64)>], f0: f64, df: f64, count: usize) -> Vec<f64> {
+    const CHUNK: usize = 32;
+    let chunks: Vec<usize> = (0..count).step_by(CHUNK).collect();
+    let tau = std::f64::consts::TAU;
+    chunks
+        .par_iter()
+        .flat_map_iter(|&j0| {
+            let len = CHUNK.min(count - j0);
+            let mut power = vec![0.0; len];
+            let (mut re, mut im) = (vec![0.0; len], vec![0.0; len]);
+            for l in lines {
+                re.fill(0.0);
+                im.fill(0.0);
+                for &(x, y) in l {
+                    let (s, c) = (tau * (f0 + j0 as f64 * df) * x).sin_cos();
+                    let (rs, rc) = (tau * df * x).sin_cos();
+                    let (mut zc, mut zs) = (c, s);
+                    for j in 0..len {
+                        re[j] += y * zc;
+                        im[j] += y * zs;
+                        (zc, zs) = (zc * rc - zs * rs, zc * rs + zs * rc);
+                    }
+                }
+                for j in 0..len {
+                    power[j] += (re[j] * re[j] + im[j] * im[j]) / l.len() as f64;
+                }
+            }
+            power
         })
-        .collect();
-    fine.into_iter()
-        .max_by(|x, y| x.1.total_cmp(&y.1))
-        .map(|x| x.0)
+        .collect()
 }
 
 /// Median radius along each axis of the region's raised elements, and their count.

@@ -168,7 +168,7 @@ impl ResizeConfig {
     }
 }
 
-/// Wall-clock seconds of each phase.
+/// Seconds of each phase.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
     pub curvature: f64,
@@ -217,7 +217,11 @@ pub struct ResizeReport {
     /// Set when the method could not do what was asked (e.g. no texture found).
     pub notice: Option<String>,
     pub measurement: Option<Measurement>,
+    /// Wall-clock seconds per phase.
     pub seconds: Timings,
+    /// CPU seconds (user + system, all threads) per phase: what the machine's load does not
+    /// change (0 where the platform does not report them).
+    pub cpu_seconds: Timings,
 }
 
 /// The resized mesh and what was done.
@@ -231,19 +235,67 @@ pub struct Resized {
     pub report: ResizeReport,
 }
 
-/// Runs `task` as one progress phase.
+/// CPU seconds (user + system, all threads) the process has used so far, from
+/// /proc/self/stat (Linux; clock ticks of 1/100 s); `None` elsewhere.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which is in parentheses and may hold spaces):
+    // state is field 3, utime 14 and stime 15.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// Wall and CPU clocks of one phase (or of the whole resize).
+struct Clock {
+    wall: Instant,
+    cpu: Option<f64>,
+}
+
+impl Clock {
+    fn start() -> Clock {
+        Clock {
+            wall: Instant::now(),
+            cpu: process_cpu_seconds(),
+        }
+    }
+
+    /// Adds the seconds since `start` to `wall` and `cpu`.
+    fn stop(&self, wall: &mut f64, cpu: &mut f64) {
+        *wall += self.wall.elapsed().as_secs_f64();
+        if let (Some(a), Some(b)) = (self.cpu, process_cpu_seconds()) {
+            *cpu += b - a;
+        }
+    }
+}
+
+/// The timings of a resize: wall-clock and CPU seconds per phase.
+#[derive(Default)]
+struct Times {
+    wall: Timings,
+    cpu: Timings,
+}
+
+/// Runs `task` as one progress phase; `field` picks the phase's entry in the timings.
 fn phase<T>(
     progress: &dyn Progress,
     name: &str,
     total: u64,
-    seconds: &mut f64,
+    times: &mut Times,
+    field: fn(&mut Timings) -> &mut f64,
     task: impl FnOnce() -> T,
 ) -> T {
-    let start = Instant::now();
+    let clock = Clock::start();
     progress.begin(name, total);
     let out = task();
     progress.end();
-    *seconds += start.elapsed().as_secs_f64();
+    let mut wall = 0.0;
+    let mut cpu = 0.0;
+    clock.stop(&mut wall, &mut cpu);
+    *field(&mut times.wall) += wall;
+    *field(&mut times.cpu) += cpu;
     out
 }
 
@@ -259,25 +311,37 @@ fn analyse(
     mesh: &Mesh,
     cfg: &ResizeConfig,
     progress: &dyn Progress,
-    t: &mut Timings,
+    t: &mut Times,
 ) -> Result<Analysis, GeotexError> {
     let (_, graph) = prepare(mesh)?;
     let normals = mesh.vertex_normals();
-    let curvatures = phase(progress, "curvature", 0, &mut t.curvature, || {
-        principal_curvatures(
-            mesh,
-            &normals,
-            cfg.curvature.radius_in_edges * graph.mean_edge,
-            cfg.curvature.columns_per_radius,
-        )
-    });
+    let curvatures = phase(
+        progress,
+        "curvature",
+        0,
+        t,
+        |t| &mut t.curvature,
+        || {
+            principal_curvatures(
+                mesh,
+                &normals,
+                cfg.curvature.radius_in_edges * graph.mean_edge,
+                cfg.curvature.columns_per_radius,
+            )
+        },
+    );
     let seg_cfg = SegmentationConfig {
         seed: cfg.seed,
         ..cfg.segmentation.clone()
     };
-    let segmentation = phase(progress, "segmentation", 0, &mut t.segmentation, || {
-        segment(mesh, &graph, &curvatures, &seg_cfg)
-    });
+    let segmentation = phase(
+        progress,
+        "segmentation",
+        0,
+        t,
+        |t| &mut t.segmentation,
+        || segment(mesh, &graph, &curvatures, &seg_cfg),
+    );
     Ok(Analysis {
         graph,
         normals,
@@ -294,11 +358,12 @@ pub fn resize(
     progress: &dyn Progress,
 ) -> Result<Resized, GeotexError> {
     cfg.check()?;
-    let start = Instant::now();
-    let mut t = Timings::default();
+    let clock = Clock::start();
+    let mut times = Times::default();
+    let t = &mut times;
     let bbox = mesh.bounding_box().ok_or(GeotexError::EmptyMesh)?;
     let size = target.size_for(&bbox.extent())?;
-    let analysis = analyse(mesh, cfg, progress, &mut t)?;
+    let analysis = analyse(mesh, cfg, progress, t)?;
     let labels = analysis.segmentation.labels.clone();
     let mut report = ResizeReport {
         method: cfg.method.name(),
@@ -328,21 +393,33 @@ pub fn resize(
             (out, labels.clone(), uniform)
         }
         Method::Kraevoy => {
-            let d = phase(progress, "grid", 0, &mut t.grid, || {
-                optimise(
-                    mesh,
-                    &analysis.normals,
-                    &analysis.curvatures,
-                    &size,
-                    &cfg.grid,
-                )
-            })?;
+            let d = phase(
+                progress,
+                "grid",
+                0,
+                t,
+                |t| &mut t.grid,
+                || {
+                    optimise(
+                        mesh,
+                        &analysis.normals,
+                        &analysis.curvatures,
+                        &size,
+                        &cfg.grid,
+                    )
+                },
+            )?;
             (deform(mesh, &d), labels.clone(), d)
         }
         Method::Texture => {
-            let ex = phase(progress, "fairing", 0, &mut t.extraction, || {
-                extract(mesh, &analysis.graph, &labels, &cfg.fairing)
-            })?;
+            let ex = phase(
+                progress,
+                "fairing",
+                0,
+                t,
+                |t| &mut t.extraction,
+                || extract(mesh, &analysis.graph, &labels, &cfg.fairing),
+            )?;
             report.fairing_iterations = ex.iterations;
             report.tangential_rms = ex.tangential_rms;
             let base = Mesh::from_triangles(ex.base.clone(), mesh.faces.clone());
@@ -355,26 +432,25 @@ pub fn resize(
             let base_extent = base.bounding_box().map_or(bbox.extent(), |b| b.extent());
             let base_size = size - (bbox.extent() - base_extent);
             let base_size = base_size.zip_map(&size, |b, s| b.max(0.1 * s));
-            let d = phase(progress, "grid", 0, &mut t.grid, || {
-                // The base's own curvature decides what the grid protects.
-                let curv = principal_curvatures(
-                    &base,
-                    &ex.base_normals,
-                    cfg.curvature.radius_in_edges * analysis.graph.mean_edge,
-                    cfg.curvature.columns_per_radius,
-                );
-                optimise(&base, &ex.base_normals, &curv, &base_size, &cfg.grid)
-            })?;
-            let (out, out_labels, split, synthesis) = texture_output(
-                mesh,
-                &analysis.graph,
-                &labels,
-                &ex,
-                &d,
-                cfg,
+            let d = phase(
                 progress,
-                &mut t,
+                "grid",
+                0,
+                t,
+                |t| &mut t.grid,
+                || {
+                    // The base's own curvature decides what the grid protects.
+                    let curv = principal_curvatures(
+                        &base,
+                        &ex.base_normals,
+                        cfg.curvature.radius_in_edges * analysis.graph.mean_edge,
+                        cfg.curvature.columns_per_radius,
+                    );
+                    optimise(&base, &ex.base_normals, &curv, &base_size, &cfg.grid)
+                },
             )?;
+            let (out, out_labels, split, synthesis) =
+                texture_output(mesh, &analysis.graph, &labels, &ex, &d, cfg, progress, t)?;
             report.split_vertices = split;
             report.synthesis = synthesis;
             extraction = Some(ex);
@@ -388,7 +464,7 @@ pub fn resize(
             s.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         ];
     }
-    t.resize = start.elapsed().as_secs_f64();
+    clock.stop(&mut t.wall.resize, &mut t.cpu.resize);
     report.output_vertices = out_mesh.positions.len();
     report.output_faces = out_mesh.faces.len();
     report.output_size = out_mesh
@@ -396,21 +472,29 @@ pub fn resize(
         .map_or([0.0; 3], |b| b.extent().into());
 
     if cfg.measure {
-        let m = phase(progress, "measurement", 0, &mut t.measurement, || {
-            measure(
-                mesh,
-                &analysis.graph,
-                &labels,
-                extraction.as_ref(),
-                &out_mesh,
-                &out_labels,
-                &deformation,
-                cfg,
-            )
-        })?;
+        let m = phase(
+            progress,
+            "measurement",
+            0,
+            t,
+            |t| &mut t.measurement,
+            || {
+                measure(
+                    mesh,
+                    &analysis.graph,
+                    &labels,
+                    extraction.as_ref(),
+                    &out_mesh,
+                    &out_labels,
+                    &deformation,
+                    cfg,
+                )
+            },
+        )?;
         report.measurement = Some(m);
     }
-    report.seconds = t;
+    report.seconds = times.wall;
+    report.cpu_seconds = times.cpu;
     Ok(Resized {
         mesh: out_mesh,
         labels: out_labels,
@@ -442,21 +526,28 @@ fn texture_output(
     d: &GridDeformation,
     cfg: &ResizeConfig,
     progress: &dyn Progress,
-    t: &mut Timings,
+    t: &mut Times,
 ) -> Result<(Mesh, Vec<u32>, usize, Vec<RegionSynthesis>), GeotexError> {
     let mut positions: Vec<Point3<f64>> = ex.base.iter().map(|p| d.apply(p)).collect();
     let mut faces = mesh.faces.clone();
     let mut out_labels = labels.to_vec();
     let n_in = mesh.positions.len();
-    let parents = phase(progress, "refinement", 0, &mut t.refinement, || {
-        refine(
-            &mut positions,
-            &mut faces,
-            &mut out_labels,
-            cfg.max_edge_ratio * graph.mean_edge,
-            (cfg.max_growth * n_in as f64) as usize,
-        )
-    });
+    let parents = phase(
+        progress,
+        "refinement",
+        0,
+        t,
+        |t| &mut t.refinement,
+        || {
+            refine(
+                &mut positions,
+                &mut faces,
+                &mut out_labels,
+                cfg.max_edge_ratio * graph.mean_edge,
+                (cfg.max_growth * n_in as f64) as usize,
+            )
+        },
+    );
     // The displacement the natural correspondence carries: the input's, averaged along
     // split edges.
     let mut carried = ex.displacement.clone();
@@ -475,32 +566,39 @@ fn texture_output(
         seed: cfg.seed,
         ..cfg.synthesis.clone()
     };
-    phase(progress, "synthesis", total, &mut t.synthesis, || {
-        for r in 1..=regions {
-            let example = Example {
-                surface: &in_surface,
-                displacement: &ex.displacement,
-                members: (0..n_in as u32)
-                    .filter(|&v| labels[v as usize] == r)
-                    .collect(),
-            };
-            let target = Output {
-                surface: &out_surface,
-                members: (0..out_labels.len() as u32)
-                    .filter(|&v| out_labels[v as usize] == r)
-                    .collect(),
-                carried: &carried,
-            };
-            let (x, fig) = synthesise_region(&example, &target, &synth_cfg, &|n| {
-                progress.advance(n as u64)
-            })?;
-            for &v in &target.members {
-                displacement[v as usize] = x[v as usize];
+    phase(
+        progress,
+        "synthesis",
+        total,
+        t,
+        |t| &mut t.synthesis,
+        || {
+            for r in 1..=regions {
+                let example = Example {
+                    surface: &in_surface,
+                    displacement: &ex.displacement,
+                    members: (0..n_in as u32)
+                        .filter(|&v| labels[v as usize] == r)
+                        .collect(),
+                };
+                let target = Output {
+                    surface: &out_surface,
+                    members: (0..out_labels.len() as u32)
+                        .filter(|&v| out_labels[v as usize] == r)
+                        .collect(),
+                    carried: &carried,
+                };
+                let (x, fig) = synthesise_region(&example, &target, &synth_cfg, &|n| {
+                    progress.advance(n as u64)
+                })?;
+                for &v in &target.members {
+                    displacement[v as usize] = x[v as usize];
+                }
+                figures.push(fig);
             }
-            figures.push(fig);
-        }
-        Ok::<(), GeotexError>(())
-    })?;
+            Ok::<(), GeotexError>(())
+        },
+    )?;
     let final_positions: Vec<Point3<f64>> = out_base
         .positions
         .iter()

@@ -22,7 +22,9 @@
 //!   neighbourhood (approximate: nearest `candidates` in an 8-D PCA projection through
 //!   kiddo, plus the coherent candidates of k-coherence search (Tong et al. 2002) — the
 //!   input neighbourhoods that the neighbouring centres' matches, shifted by the offset
-//!   between the centres, point at — all re-ranked by the full distance); the other
+//!   between the centres, point at — all re-ranked by the full distance; the index search
+//!   is bounded by the best coherent candidate's distance, which the projection cannot
+//!   lengthen, so it prunes without changing the answer); the other
 //!   minimises the energy for `x` by least squares (normal equations, factored once per
 //!   level since `W` does not change). Coherent candidates make the output copy whole
 //!   stretches of the input, which keeps a thread running without dislocations.
@@ -145,6 +147,9 @@ pub(crate) struct Surface<'a> {
     /// Faces around each vertex (compressed rows).
     offsets: Vec<u32>,
     incident: Vec<u32>,
+    /// The face across each face's edge opposite corner `k` (`u32::MAX` on a boundary or
+    /// a non-manifold edge): what the template walk steps through.
+    across: Vec<[u32; 3]>,
     mean_edge: f64,
 }
 
@@ -181,6 +186,7 @@ impl<'a> Surface<'a> {
             normals,
             offsets,
             incident,
+            across: face_adjacency(faces),
             mean_edge: edge_sum / (3 * faces.len()).max(1) as f64,
         }
     }
@@ -188,6 +194,35 @@ impl<'a> Surface<'a> {
     fn faces_of(&self, v: u32) -> &[u32] {
         &self.incident[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
     }
+}
+
+/// For each face, the face across the edge opposite each corner: edges sorted by their
+/// ends, paired when exactly two faces share one (boundary and non-manifold edges get
+/// `u32::MAX`).
+fn face_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    let mut edges: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * faces.len());
+    for (f, face) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+            edges.push((a.min(b), a.max(b), (f as u32) << 2 | k as u32));
+        }
+    }
+    edges.par_sort_unstable();
+    let mut across = vec![[u32::MAX; 3]; faces.len()];
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && (edges[j].0, edges[j].1) == (edges[i].0, edges[i].1) {
+            j += 1;
+        }
+        if j == i + 2 {
+            let (x, y) = (edges[i].2, edges[i + 1].2);
+            across[(x >> 2) as usize][(x & 3) as usize] = y >> 2;
+            across[(y >> 2) as usize][(y & 3) as usize] = x >> 2;
+        }
+        i = j;
+    }
+    across
 }
 
 /// One grid point of a template: the face it fell in and its barycentric weights of the
@@ -235,8 +270,8 @@ struct Scratch {
 }
 
 /// Samples the template of half-width `m`, spacing `s`, around vertex `centre` shifted by
-/// `offset` grid steps along its frame (module docs): faces are unfolded nearest first
-/// until every grid point is covered or the faces get farther than the template's reach.
+/// `offset` grid steps along its frame (module docs): each grid point takes the face its
+/// line along the normal crosses first, near the centre.
 ///
 /// Why the shift: grids centred on vertices put their samples at fixed phases of the
 /// vertex lattice (on the input, exactly on vertices when `d` matches the edge length), so
@@ -244,6 +279,14 @@ struct Scratch {
 /// output samples and the synthesis locks features to the output's lattice (a thread's
 /// pitch snapping to a multiple of the stretched edge length, 6% off). Random sub-step
 /// shifts on both sides make the blur the same in distribution.
+///
+/// How: the grid points are located by walking (Lawson's visibility walk on the faces
+/// projected to the tangent plane, from one grid point to the next in serpentine order),
+/// a few face tests per grid point; where a walk cannot go on (an open boundary, a face
+/// turned away past the horizon, a cycle) the template falls back to the unfolding, which
+/// visits every face within the template's reach nearest first. Both give the face the
+/// grid point's normal line crosses; they can differ only where the projection overlaps
+/// itself.
 #[allow(clippy::too_many_arguments)]
 fn sample_template(
     surface: &Surface,
@@ -263,6 +306,117 @@ fn sample_template(
     let (t1, t2) = frame(&n, axes);
     // The grid's origin: the vertex moved within the tangent plane by `offset` steps.
     let p = surface.positions[centre as usize] + (t1 * offset[0] + t2 * offset[1]) * s;
+    if walk_template(surface, &n, &t1, &t2, &p, centre, m, s, &mut out) {
+        return out;
+    }
+    out.fill(MISSING);
+    unfold_template(surface, &n, &t1, &t2, &p, centre, m, s, scratch, out)
+}
+
+/// A face turned more than about 80 degrees from the template's normal `n` is beyond the
+/// horizon of the tangent plane (see [`unfold_template`]).
+fn faces_the_template(surface: &Surface, f: u32, n: &Vector3<f64>) -> bool {
+    let [a, b, c] = surface.faces[f as usize].map(|v| surface.positions[v as usize]);
+    let normal = (b - a).cross(&(c - a));
+    normal.dot(n) > 0.17 * normal.norm()
+}
+
+/// Fills `out` by walking (see [`sample_template`]); false when a grid point could not be
+/// reached.
+#[allow(clippy::too_many_arguments)]
+fn walk_template(
+    surface: &Surface,
+    n: &Vector3<f64>,
+    t1: &Vector3<f64>,
+    t2: &Vector3<f64>,
+    p: &Point3<f64>,
+    centre: u32,
+    m: usize,
+    s: f64,
+    out: &mut [Sample],
+) -> bool {
+    let w = 2 * m + 1;
+    let half = m as i64;
+    let Some(mut face) = surface
+        .faces_of(centre)
+        .iter()
+        .copied()
+        .find(|&f| faces_the_template(surface, f, n))
+    else {
+        return false;
+    };
+    // Steps allowed per grid point: the first walk crosses half the template, the others
+    // one grid step; a cycle (possible on a projection that overlaps itself) runs out.
+    let limit = 16 + (4.0 * m as f64 * s / surface.mean_edge.max(f64::MIN_POSITIVE)) as usize;
+    let project = |v: u32| {
+        let d = surface.positions[v as usize] - p;
+        [d.dot(t1) / s, d.dot(t2) / s]
+    };
+    for j in -half..=half {
+        for step in 0..w as i64 {
+            // Serpentine: even rows left to right, odd rows back.
+            let i = if (j + half) % 2 == 0 {
+                step - half
+            } else {
+                half - step
+            };
+            let (gi, gj) = (i as f64, j as f64);
+            let mut found = None;
+            for _ in 0..limit {
+                let q = surface.faces[face as usize].map(project);
+                let area2 = (q[1][0] - q[0][0]) * (q[2][1] - q[0][1])
+                    - (q[1][1] - q[0][1]) * (q[2][0] - q[0][0]);
+                if area2 <= 1e-12 {
+                    return false;
+                }
+                // Barycentric coordinates of the grid point: corner k's weight is the
+                // signed area of the edge opposite k with the point.
+                let bary: [f64; 3] = std::array::from_fn(|k| {
+                    let (a, b) = (q[(k + 1) % 3], q[(k + 2) % 3]);
+                    ((b[0] - a[0]) * (gj - a[1]) - (b[1] - a[1]) * (gi - a[0])) / area2
+                });
+                let (worst, lowest) =
+                    (0..3)
+                        .map(|k| (k, bary[k]))
+                        .fold(
+                            (0, f64::INFINITY),
+                            |acc, x| if x.1 < acc.1 { x } else { acc },
+                        );
+                if lowest >= -1e-9 {
+                    found = Some([bary[1].max(0.0) as f32, bary[2].max(0.0) as f32]);
+                    break;
+                }
+                let next = surface.across[face as usize][worst];
+                if next == u32::MAX || !faces_the_template(surface, next, n) {
+                    return false;
+                }
+                face = next;
+            }
+            let Some(b) = found else {
+                return false;
+            };
+            out[((j + half) as usize) * w + (i + half) as usize] = Sample { face, b };
+        }
+    }
+    true
+}
+
+/// Fills `out` by unfolding faces nearest first (module docs).
+#[allow(clippy::too_many_arguments)]
+fn unfold_template(
+    surface: &Surface,
+    n: &Vector3<f64>,
+    t1: &Vector3<f64>,
+    t2: &Vector3<f64>,
+    p: &Point3<f64>,
+    centre: u32,
+    m: usize,
+    s: f64,
+    scratch: &mut Scratch,
+    mut out: Vec<Sample>,
+) -> Vec<Sample> {
+    let w = 2 * m + 1;
+    let (n, t1, t2, p) = (*n, *t1, *t2, *p);
     if scratch.seen.len() != surface.faces.len() {
         scratch.seen = vec![0; surface.faces.len()];
         scratch.generation = 0;
@@ -281,11 +435,7 @@ fn sample_template(
     // tangent plane (on a closed, curved region — a blob — the coarse templates reach past
     // it), and projecting it would both give grid points the far side's values and flood
     // the whole reach of the mesh.
-    let faces_the_template = |f: u32| -> bool {
-        let [a, b, c] = surface.faces[f as usize].map(|v| surface.positions[v as usize]);
-        let normal = (b - a).cross(&(c - a));
-        normal.dot(&n) > 0.17 * normal.norm()
-    };
+    let faces_the_template = |f: u32| faces_the_template(surface, f, &n);
     let centroid_distance = |f: u32| -> f64 {
         let face = surface.faces[f as usize];
         let c = (surface.positions[face[0] as usize].coords
@@ -501,22 +651,47 @@ impl Exemplars {
 
     /// The exemplar nearest to `v` among the PCA candidates and the `coherent` ones, with
     /// its squared distance.
+    ///
+    /// The coherent candidates are ranked first: the projection shortens every distance,
+    /// so a PCA candidate farther than the best coherent one in the projection cannot beat
+    /// it, and the index search is bounded by that distance (the same answer as the
+    /// unbounded search, with most of the tree pruned once the iterates settle).
     fn best(&self, v: &[f32], candidates: usize, coherent: &[u32]) -> (u32, f64) {
+        let found = self.nearest_among(v, coherent);
         let y = self.project(v);
-        let mut best = (0u32, f64::INFINITY);
-        let pca = self.index.k_nearest(&y, candidates);
-        for e in pca.iter().map(|n| n.index).chain(coherent.iter().copied()) {
-            let d: f64 = self
-                .row(e as usize)
-                .iter()
-                .zip(v)
-                .map(|(a, b)| ((a - b) as f64).powi(2))
-                .sum();
-            if d < best.1 || (d == best.1 && e < best.0) {
-                best = (e, d);
-            }
+        // The slack covers the rounding of the f32 projection (ties keep the lower index).
+        let bound = found.1.sqrt() * (1.0 + 1e-4) + 1e-6;
+        let pca = if bound.is_finite() {
+            self.index.k_nearest_within(&y, candidates, bound)
+        } else {
+            self.index.k_nearest(&y, candidates)
+        };
+        pca.iter()
+            .map(|n| n.index)
+            .fold(found, |best, e| self.closer(v, best, e))
+    }
+
+    /// The exemplar of `candidates` nearest to `v` by the full distance (ties to the
+    /// lower index), with its squared distance.
+    fn nearest_among(&self, v: &[f32], candidates: &[u32]) -> (u32, f64) {
+        candidates
+            .iter()
+            .fold((0u32, f64::INFINITY), |best, &e| self.closer(v, best, e))
+    }
+
+    fn closer(&self, v: &[f32], best: (u32, f64), e: u32) -> (u32, f64) {
+        let d: f32 = self
+            .row(e as usize)
+            .iter()
+            .zip(v)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
+        let d = d as f64;
+        if d < best.1 || (d == best.1 && e < best.0) {
+            (e, d)
+        } else {
+            best
         }
-        best
     }
 }
 

@@ -16,7 +16,8 @@ use fresco_sprites::octree::{self, OctreeConfig};
 use fresco_sprites::pipeline::{self, View};
 use fresco_sprites::render::{RenderConfig, Rest, downsample, orbit_camera, psnr, render};
 use fresco_sprites::scene::Scene;
-use fresco_sprites::{Footprint, Query};
+use fresco_sprites::tree_mip::TreeMip;
+use fresco_sprites::{Footprint, Query, SpriteTree};
 use rayon::prelude::*;
 
 /// The paper's table 2 (MB: structure, allocated, total) and table 1 (FPS at 800x600).
@@ -40,6 +41,11 @@ fn main() {
     let surface = surface_queries(&mesh, per_face);
     let mut random = surface.clone();
     shuffle(&mut random, 7);
+    if let Some(k) = std::env::args().position(|a| a == "--profile") {
+        let order = std::env::args().nth(k + 1).unwrap_or_default();
+        profile(root, &mesh, &surface, &random, &order);
+        return;
+    }
     println!(
         "threads {}, {} lookups per pass ({} per face, face order), load {}",
         rayon::current_num_threads(),
@@ -50,7 +56,7 @@ fn main() {
             .trim()
     );
     println!(
-        "| case | sprites | N | O_max | depth | structure MB | allocated MB | patterns MB | 2D texture MB | covered | surface-order Mlookups/s wall (per CPU-s x threads) | random-order Mlookups/s wall (per CPU-s x threads) | paper structure / allocated | paper Mlookups/s (800x600 x FPS) |"
+        "| case | sprites | N | O_max | depth | structure MB | allocated MB | patterns MB | 2D texture MB | covered | surface-order Mlookups/s wall (per CPU-s x threads), `lookup_many` | random-order Mlookups/s wall (per CPU-s x threads) | paper structure / allocated | paper Mlookups/s (800x600 x FPS) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let view = View {
@@ -65,6 +71,7 @@ fn main() {
     };
     let area = mesh.surface_area();
     let only = std::env::var("CASES").ok();
+    let mut notes = Vec::new();
     for (case, paper_struct, paper_alloc, fps) in &PAPER[..5] {
         if only
             .as_ref()
@@ -86,8 +93,32 @@ fn main() {
             .par_iter()
             .filter(|q| tree.lookup(q)[3] > 0.0)
             .count();
-        let s_rate = rate(&surface, &|q| tree.lookup(q));
+        let s_rate = rate_many(&surface, &tree);
         let r_rate = rate(&random, &|q| tree.lookup(q));
+        let f = |r: (f64, f64)| format!("{:.1} ({:.1})", r.0 / 1e6, r.1 / 1e6);
+        if *case == "gears" {
+            // The goal case: every lookup path in both orders, the one before this layout
+            // (lookup_plain) included.
+            for (order, qs) in [("surface", &surface), ("random", &random)] {
+                notes.push(format!(
+                    "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (before) {}, lookup {}, lookup_many {}",
+                    f(rate(qs, &|q| tree.lookup_plain(q))),
+                    f(rate(qs, &|q| tree.lookup(q))),
+                    f(rate_many(qs, &tree)),
+                ));
+            }
+            // Tree mip-mapping (section 6): cell means from the surface points, then
+            // lookups whose footprint is a level-1 cell (a distant view) stop there.
+            let t = Instant::now();
+            let mip = TreeMip::new(&tree, &surface);
+            let built = t.elapsed().as_secs_f64();
+            let width = (tree.cube().1 / (m.n as f64 * m.n as f64)) as f32;
+            notes.push(format!(
+                "{case}, tree mip-mapping: cell means from the {} surface points in {built:.2} s wall; random order with a level-1 footprint ({width:.3} world units) {} Mlookups/s wall (per CPU-s x threads)",
+                surface.len(),
+                f(rate(&random, &|q| mip.lookup(&tree, q, width))),
+            ));
+        }
         // The 2D texture with the sprites' texel density over the whole surface (RGBA8).
         let mut dens: Vec<f64> = tree
             .ids()
@@ -120,6 +151,9 @@ fn main() {
         let (img, _) = pipeline::render_scene(&mesh, None, &scene, &view, &shaded, 0.0).unwrap();
         img.save(pictures.join(format!("sprites_{case}.png")))
             .unwrap();
+    }
+    for n in &notes {
+        println!("{n}");
     }
     if only.is_some() {
         return;
@@ -296,24 +330,117 @@ fn cpu_seconds() -> f64 {
     (ticks(11) + ticks(12)) / 100.0
 }
 
-/// Lookups per second on all threads, best of 3 passes by wall time, and the rate per CPU
+/// Lookups per second on all threads, best of 3 runs by wall time, and the rate per CPU
 /// second times the thread count (what the threads would do with the cores to themselves:
-/// the shared machine's load takes most of the wall time).
+/// the shared machine's load takes most of the wall time). Each run repeats passes over the
+/// queries for at least 1 CPU-second (the CPU clock ticks every 10 ms).
 fn rate(queries: &[Query], f: &(dyn Fn(&Query) -> [f32; 4] + Sync)) -> (f64, f64) {
-    let mut best = f64::INFINITY;
-    let mut best_cpu = f64::INFINITY;
-    for _ in 0..3 {
-        let (t, c) = (Instant::now(), cpu_seconds());
-        let sum: f64 = queries
+    rate_of(queries.len(), &|| {
+        queries
             .par_chunks(4096)
             .map(|c| c.iter().map(|q| f(q)[3] as f64).sum::<f64>())
-            .sum();
-        std::hint::black_box(sum);
-        best = best.min(t.elapsed().as_secs_f64());
-        best_cpu = best_cpu.min((cpu_seconds() - c).max(0.01));
+            .sum()
+    })
+}
+
+/// [`rate`] for the batched lookup ([`SpriteTree::lookup_many`]) over chunks of 4096 queries.
+fn rate_many(queries: &[Query], tree: &SpriteTree) -> (f64, f64) {
+    rate_of(queries.len(), &|| {
+        queries
+            .par_chunks(4096)
+            .map(|c| {
+                let mut out = vec![[0f32; 4]; c.len()];
+                tree.lookup_many(c, &mut out);
+                out.iter().map(|v| v[3] as f64).sum::<f64>()
+            })
+            .sum()
+    })
+}
+
+/// Wall and per-CPU-second rates of `pass` (`n` lookups, returns a checksum): best of 3 runs
+/// of at least 1 CPU-second each.
+fn rate_of(n: usize, pass: &(dyn Fn() -> f64 + Sync)) -> (f64, f64) {
+    let mut best = 0f64;
+    let mut best_cpu = 0f64;
+    for _ in 0..3 {
+        let (t, c) = (Instant::now(), cpu_seconds());
+        let mut passes = 0;
+        while passes == 0 || cpu_seconds() - c < 1.0 {
+            std::hint::black_box(pass());
+            passes += 1;
+        }
+        let lookups = (n * passes) as f64;
+        best = best.max(lookups / t.elapsed().as_secs_f64());
+        best_cpu =
+            best_cpu.max(lookups / (cpu_seconds() - c) * rayon::current_num_threads() as f64);
     }
-    let n = queries.len() as f64;
-    (n / best, n / best_cpu * rayon::current_num_threads() as f64)
+    (best, best_cpu)
+}
+
+/// `--profile ORDER [PASSES]`: only the gears lookups on this thread, `PASSES` passes (default
+/// 20) in `surface` or `random` order, through `lookup` or (`surface-many`, `random-many`)
+/// `lookup_many`; for `perf stat` / `perf record` (`PASSES=0` measures the set-up).
+fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order: &str) {
+    let passes: usize = std::env::args()
+        .skip_while(|a| a != "--profile")
+        .nth(2)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20);
+    let scene = Scene::load(&root.join("gears.json")).unwrap();
+    let bb = mesh.bounding_box().unwrap();
+    let tree = scene
+        .build(
+            [bb.min.x, bb.min.y, bb.min.z],
+            [bb.max.x, bb.max.y, bb.max.z],
+            0.0,
+        )
+        .unwrap();
+    let qs = if order.starts_with("random") {
+        random
+    } else {
+        surface
+    };
+    // The three lookups in turn, pass after pass, so the machine's load weighs on each alike.
+    let names = ["lookup_plain (before)", "lookup", "lookup_many"];
+    let mut cpu = [0f64; 3];
+    let mut wall = [0f64; 3];
+    let mut sums = [0f64; 3];
+    let mut out = vec![[0f32; 4]; qs.len()];
+    for _ in 0..passes {
+        for (k, name) in names.iter().enumerate() {
+            let (t, c) = (Instant::now(), cpu_seconds());
+            match *name {
+                "lookup_many" => tree.lookup_many(qs, &mut out),
+                "lookup" => qs
+                    .iter()
+                    .zip(&mut out)
+                    .for_each(|(q, o)| *o = tree.lookup(q)),
+                _ => qs
+                    .iter()
+                    .zip(&mut out)
+                    .for_each(|(q, o)| *o = tree.lookup_plain(q)),
+            }
+            cpu[k] += cpu_seconds() - c;
+            wall[k] += t.elapsed().as_secs_f64();
+            sums[k] += out.iter().map(|v| v[3] as f64).sum::<f64>();
+        }
+    }
+    let n = (passes * qs.len()) as f64;
+    for k in 0..3 {
+        println!(
+            "{order} order, {}: {n} lookups, {:.1} M/s wall, {:.1} M per CPU-s on one thread (checksum {:.3})",
+            names[k],
+            n / wall[k] / 1e6,
+            n / cpu[k].max(0.01) / 1e6,
+            sums[k]
+        );
+    }
+    println!(
+        "load {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
 }
 
 /// Surface points in face order (a barycentric grid of `k` steps per face, as a bake visits

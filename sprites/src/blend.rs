@@ -87,7 +87,7 @@ impl BlendConfig {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Blend {
     cos_start: f32,
-    cos_end: f32,
+    pub(crate) cos_end: f32,
     lo: f32,
     inv_width: f32,
 }
@@ -112,7 +112,12 @@ pub struct Query {
 /// Premultiplied RGBA of sprite `s` at the query, weighted by the attenuation, or `None`
 /// when the point is outside its volume or the weight is zero.
 #[inline]
-fn contribution(s: &Prepared, patterns: &[Pattern], q: &Query, b: &Blend) -> Option<[f32; 4]> {
+pub(crate) fn contribution(
+    s: &Prepared,
+    patterns: &[Pattern],
+    q: &Query,
+    b: &Blend,
+) -> Option<[f32; 4]> {
     let u = s.local(q.p);
     if u[0].abs() > 0.5 || u[1].abs() > 0.5 || u[2].abs() > 0.5 {
         return None;
@@ -189,32 +194,55 @@ pub(crate) fn composite<'a>(
     q: &Query,
     b: &Blend,
 ) -> [f32; 4] {
-    let mut acc = [0f32; 4];
-    let mut run = Run::None;
+    let mut acc = Compositor::new();
     for s in sprites {
-        let Some(c) = contribution(s, patterns, q, b) else {
-            continue;
-        };
-        match s.blend {
+        if let Some(c) = contribution(s, patterns, q, b) {
+            acc.push(s.blend, c, b);
+        }
+    }
+    acc.finish(b)
+}
+
+/// The blending state of one lookup: contributions go in, in user order, with
+/// [`Compositor::push`] (sprites that do not contribute are skipped, they do not end a run).
+pub(crate) struct Compositor {
+    acc: [f32; 4],
+    run: Run,
+}
+
+impl Compositor {
+    #[inline]
+    pub(crate) fn new() -> Compositor {
+        Compositor {
+            acc: [0.0; 4],
+            run: Run::None,
+        }
+    }
+
+    /// Blends the contribution `c` of a sprite with mode `mode`.
+    #[inline]
+    pub(crate) fn push(&mut self, mode: BlendMode, c: [f32; 4], b: &Blend) {
+        let (run, acc) = (&mut self.run, &mut self.acc);
+        match mode {
             BlendMode::Over => {
-                flush(&mut run, &mut acc, b);
-                over(&mut acc, c);
+                flush(run, acc, b);
+                over(acc, c);
             }
             BlendMode::Add => {
-                flush(&mut run, &mut acc, b);
+                flush(run, acc, b);
                 for i in 0..4 {
                     acc[i] = (acc[i] + c[i]).min(1.0);
                 }
             }
             BlendMode::Blobby => {
                 if !matches!(run, Run::Blobby { .. }) {
-                    flush(&mut run, &mut acc, b);
-                    run = Run::Blobby {
+                    flush(run, acc, b);
+                    *run = Run::Blobby {
                         field: 0.0,
                         rgb: [0.0; 3],
                     };
                 }
-                if let Run::Blobby { field, rgb } = &mut run {
+                if let Run::Blobby { field, rgb } = run {
                     *field += c[3];
                     for i in 0..3 {
                         rgb[i] += c[i];
@@ -223,13 +251,13 @@ pub(crate) fn composite<'a>(
             }
             BlendMode::Voronoi => {
                 if !matches!(run, Run::Voronoi { .. }) {
-                    flush(&mut run, &mut acc, b);
-                    run = Run::Voronoi {
+                    flush(run, acc, b);
+                    *run = Run::Voronoi {
                         best: 0.0,
                         rgb: [0.0; 3],
                     };
                 }
-                if let Run::Voronoi { best, rgb } = &mut run
+                if let Run::Voronoi { best, rgb } = run
                     && c[3] > *best
                 {
                     *best = c[3];
@@ -238,6 +266,11 @@ pub(crate) fn composite<'a>(
             }
         }
     }
-    flush(&mut run, &mut acc, b);
-    acc
+
+    /// The premultiplied RGBA once every sprite went in.
+    #[inline]
+    pub(crate) fn finish(mut self, b: &Blend) -> [f32; 4] {
+        flush(&mut self.run, &mut self.acc, b);
+        self.acc
+    }
 }

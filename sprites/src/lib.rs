@@ -6,8 +6,11 @@
 //!
 //! Entry points:
 //! - [`SpriteTree`] (`tree.rs`): the N^3-tree (indirection pool shared with octree textures),
-//!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] and the brute-force
-//!   reference, [`SpriteTree::memory`];
+//!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] (and
+//!   [`SpriteTree::lookup_many`] for queries in surface order, on the CPU lookup layout of
+//!   `lookup.rs`: 8 sprites tested at once in SIMD lanes) and the brute-force reference,
+//!   [`SpriteTree::memory`]; [`tree_mip::TreeMip`]: tree mip-mapping (cell means for distant
+//!   views);
 //! - [`Sprite`], [`Placement`], [`BlendMode`] (`sprite.rs`), [`Pattern`] (`pattern.rs`),
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
 //! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
@@ -20,6 +23,7 @@
 pub mod bake;
 pub mod blend;
 pub mod error;
+pub(crate) mod lookup;
 pub mod octree;
 pub mod pattern;
 pub mod pipeline;
@@ -27,6 +31,7 @@ pub mod render;
 pub mod scene;
 pub mod sprite;
 pub mod tree;
+pub mod tree_mip;
 
 pub use blend::{BlendConfig, Footprint, Query};
 pub use error::{Result, SpriteError};

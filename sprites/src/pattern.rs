@@ -89,18 +89,25 @@ impl Level {
         let (w, h) = (self.width as i32, self.height as i32);
         let x = s * w as f32 - 0.5;
         let y = t * h as f32 - 0.5;
-        let (xf, yf) = (x.floor(), y.floor());
+        // floor without libm's floorf (a call on baseline x86-64): truncate, then step down
+        // for negative non-integers; equal to floor for |x| < 2^31.
+        let floor = |v: f32| {
+            let i = v as i32;
+            if (i as f32) > v { i - 1 } else { i }
+        };
+        let (xi, yi) = (floor(x), floor(y));
+        let (xf, yf) = (xi as f32, yi as f32);
         let (fx, fy) = (x - xf, y - yf);
-        let (xi, yi) = (xf as i32, yf as i32);
         let x0 = xi.clamp(0, w - 1) as usize;
         let x1 = (xi + 1).clamp(0, w - 1) as usize;
         let y0 = yi.clamp(0, h - 1) as usize;
         let y1 = (yi + 1).clamp(0, h - 1) as usize;
         let row = self.width as usize;
-        let t00 = self.texels[y0 * row + x0];
-        let t10 = self.texels[y0 * row + x1];
-        let t01 = self.texels[y1 * row + x0];
-        let t11 = self.texels[y1 * row + x1];
+        let texels = &self.texels[..row * self.height as usize];
+        let t00 = texels[y0 * row + x0];
+        let t10 = texels[y0 * row + x1];
+        let t01 = texels[y1 * row + x0];
+        let t11 = texels[y1 * row + x1];
         let w00 = (1.0 - fx) * (1.0 - fy);
         let w10 = fx * (1.0 - fy);
         let w01 = (1.0 - fx) * fy;

@@ -17,8 +17,11 @@ use fresco_pst::octree_texture::{
     Pool, TAG_CHILD, TAG_EMPTY, TAG_LEAF, cell, float32_depth_limit, payload, tag, to_fixed,
 };
 
-use crate::blend::{Blend, BlendConfig, Query, composite};
+use std::sync::OnceLock;
+
+use crate::blend::{Blend, BlendConfig, Compositor, Query, composite, contribution};
 use crate::error::{Result, SpriteError};
+use crate::lookup::Flat;
 use crate::pattern::Pattern;
 use crate::sprite::{Prepared, Sprite, meets_box, overlap_in_box};
 
@@ -101,6 +104,8 @@ pub struct SpriteTree {
     free_ids: Vec<usize>,
     patterns: Vec<Pattern>,
     blend: Blend,
+    /// The lookup layout, built by the first lookup after a change.
+    flat: OnceLock<Flat>,
 }
 
 /// Memory and shape figures (section 7.2, table 2).
@@ -126,6 +131,9 @@ pub struct MemoryReport {
     pub float32_depth_limit: u32,
     /// Deepest level the CPU lookup reaches (32-bit fixed point).
     pub cpu_depth_limit: u32,
+    /// Bytes of the CPU lookup layout (`lookup.rs`: flattened nodes, leaf sprites in SIMD
+    /// chunks), a copy kept beside the GPU layout above.
+    pub lookup_bytes: usize,
 }
 
 impl SpriteTree {
@@ -157,6 +165,7 @@ impl SpriteTree {
             free_ids: Vec::new(),
             patterns,
             blend: blend.prepare(),
+            flat: OnceLock::new(),
         })
     }
 
@@ -198,6 +207,7 @@ impl SpriteTree {
 
     /// Adds a sprite (section 5.2); returns its id. On error the tree is unchanged.
     pub fn add(&mut self, sprite: Sprite) -> Result<usize> {
+        self.flat.take();
         let id = self.free_ids.pop().unwrap_or(self.sprites.len());
         let index = id;
         sprite
@@ -223,6 +233,7 @@ impl SpriteTree {
         if self.sprite(id).is_none() {
             return Err(SpriteError::NoSprite(id));
         }
+        self.flat.take();
         self.remove_node(0, 0, [0; 3], id);
         self.free_ids.push(id);
         Ok(self.sprites[id].take().expect("checked"))
@@ -259,6 +270,7 @@ impl SpriteTree {
                 self.prepared[id] = saved.4;
                 let k = self.free_ids.iter().rposition(|&f| f == id).expect("freed");
                 self.free_ids.remove(k);
+                self.flat.take();
                 Err(e)
             }
         }
@@ -501,18 +513,27 @@ impl SpriteTree {
         self.free_vectors.push(v as u32);
     }
 
-    /// The leaf vector holding the point `p` (world units), empty outside the tree.
+    /// Fixed-point coordinates of `p` (world units), or `None` outside the tree's cube.
     #[inline]
-    pub fn sprites_at(&self, p: [f32; 3]) -> &[u32] {
+    pub fn fixed_inside(&self, p: [f32; 3]) -> Option<[u32; 3]> {
         let mut f = [0u32; 3];
         let inv = 1.0 / self.size;
         for a in 0..3 {
             let t = (p[a] as f64 - self.min[a]) * inv;
             if !(0.0..1.0).contains(&t) {
-                return &[];
+                return None;
             }
             f[a] = (t * 4_294_967_296.0) as u32;
         }
+        Some(f)
+    }
+
+    /// The leaf vector holding the point `p` (world units), empty outside the tree.
+    #[inline]
+    pub fn sprites_at(&self, p: [f32; 3]) -> &[u32] {
+        let Some(f) = self.fixed_inside(p) else {
+            return &[];
+        };
         let d = self.pool.descend(f, self.config.max_depth);
         if tag(d.cell) != TAG_LEAF {
             return &[];
@@ -522,10 +543,10 @@ impl SpriteTree {
         &self.vectors[v * o..(v + 1) * o]
     }
 
-    /// The composite texture at a surface point: tree lookup, then the leaf's sprites
-    /// (premultiplied RGBA).
-    #[inline]
-    pub fn lookup(&self, q: &Query) -> [f32; 4] {
+    /// The lookup without the CPU layout: the pool's descent, the leaf vector's ids, then
+    /// each sprite's full scalar test in turn. Same results as [`SpriteTree::lookup`]; kept
+    /// as the benchmark's baseline (`figure1 --profile`).
+    pub fn lookup_plain(&self, q: &Query) -> [f32; 4] {
         let ids = self.sprites_at(q.p);
         composite(
             ids.iter()
@@ -535,6 +556,80 @@ impl SpriteTree {
             q,
             &self.blend,
         )
+    }
+
+    fn flat(&self) -> &Flat {
+        self.flat
+            .get_or_init(|| Flat::new(&self.pool, &self.vectors, self.config.o_max, &self.prepared))
+    }
+
+    /// The composite texture at a surface point (premultiplied RGBA): figure 5's descent to
+    /// the leaf, then its sprites in user order, tested [`crate::lookup::LANES`] at a time
+    /// (see `lookup.rs`); equal to [`SpriteTree::brute_force`] bit for bit.
+    #[inline]
+    pub fn lookup(&self, q: &Query) -> [f32; 4] {
+        let flat = self.flat();
+        let Some(f) = self.fixed_inside(q.p) else {
+            return [0.0; 4];
+        };
+        match flat.descend(f, self.config.max_depth).vector {
+            Some(v) => self.evaluate(flat, v, q),
+            None => [0.0; 4],
+        }
+    }
+
+    /// [`SpriteTree::lookup`] of each query into `out` (same length). Queries in surface
+    /// order (as a bake or a scanline visits them) share the descent while they stay in one
+    /// cell.
+    pub fn lookup_many(&self, queries: &[Query], out: &mut [[f32; 4]]) {
+        assert_eq!(queries.len(), out.len(), "one output per query");
+        let flat = self.flat();
+        // The last cell reached: its fixed-point point, shift and leaf vector.
+        let mut last: Option<([u32; 3], u32, Option<u32>)> = None;
+        for (q, o) in queries.iter().zip(out) {
+            let Some(f) = self.fixed_inside(q.p) else {
+                *o = [0.0; 4];
+                continue;
+            };
+            let vector = match last {
+                Some((g, shift, v))
+                    if ((f[0] ^ g[0]) | (f[1] ^ g[1]) | (f[2] ^ g[2])) >> shift == 0 =>
+                {
+                    v
+                }
+                _ => {
+                    let d = flat.descend(f, self.config.max_depth);
+                    last = Some((f, flat.cell_shift(d.level), d.vector));
+                    d.vector
+                }
+            };
+            *o = match vector {
+                Some(v) => self.evaluate(flat, v, q),
+                None => [0.0; 4],
+            };
+        }
+    }
+
+    /// The sprites of leaf vector `v` at `q`: lane tests pick the candidates, the reference's
+    /// scalar evaluation blends them in user order.
+    #[inline]
+    fn evaluate(&self, flat: &Flat, v: u32, q: &Query) -> [f32; 4] {
+        let mut acc = Compositor::new();
+        for chunk in flat.chunks(v) {
+            if chunk.id[0] == NO_SPRITE {
+                break;
+            }
+            let mut bits = chunk.candidates(q.p, q.normal, self.blend.cos_end);
+            while bits != 0 {
+                let lane = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let s = &self.prepared[chunk.id[lane] as usize];
+                if let Some(c) = contribution(s, &self.patterns, q, &self.blend) {
+                    acc.push(s.blend, c, &self.blend);
+                }
+            }
+        }
+        acc.finish(&self.blend)
     }
 
     /// Every live sprite in user order, for [`SpriteTree::brute_force`].
@@ -649,6 +744,7 @@ impl SpriteTree {
             pattern_bytes: self.patterns.iter().map(|p| p.bytes()).sum(),
             float32_depth_limit: float32_depth_limit(self.pool.log_n(), log_s),
             cpu_depth_limit: self.pool.max_levels(),
+            lookup_bytes: self.flat().bytes(),
         }
     }
 }

@@ -1,5 +1,6 @@
 //! The tree lookup equals a brute-force evaluation over all sprites (issue 16's first "must
-//! show"), for every blend mode and N = 2, 4, 8, and stays so through deletions and updates;
+//! show"), for every blend mode and N = 2, 4, 8, one query at a time and in batches in surface
+//! order (`lookup_many`), and stays so through deletions and updates;
 //! insertion failures are errors that leave the tree unchanged.
 
 use fresco_core::Rng;
@@ -126,6 +127,27 @@ fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
         );
         covered += (a[3] > 0.0) as usize;
     }
+    // Surface order through lookup_many: walks of small steps over the sphere, so that
+    // consecutive queries share cells (and the descent), crossing cell borders now and then.
+    let mut walk = Vec::new();
+    for _ in 0..count / 200 {
+        let mut q = random_query(rng);
+        let step = unit(rng).map(|v| v as f32 * 2e-3);
+        for _ in 0..200 {
+            q.p = [0, 1, 2].map(|a| q.p[a] + step[a]);
+            walk.push(q);
+        }
+    }
+    let mut out = vec![[0f32; 4]; walk.len()];
+    tree.lookup_many(&walk, &mut out);
+    for (q, a) in walk.iter().zip(&out) {
+        let b = tree.brute_force(&order, q);
+        assert_eq!(
+            a.map(f32::to_bits),
+            b.map(f32::to_bits),
+            "lookup_many {q:?}: {a:?} vs {b:?}"
+        );
+    }
     covered
 }
 
@@ -171,6 +193,8 @@ fn deletions_and_updates_keep_lookups_exact_and_the_tree_minimal() {
             }
         }
         let before = t.memory();
+        // Lookups before the changes (the lookup layout is built), then after them.
+        assert_equal(&t, &mut rng, 1_000);
         // Delete every third sprite, move or rescale every other one.
         for (k, &id) in ids.iter().enumerate() {
             if k % 3 == 0 {
@@ -265,4 +289,62 @@ fn insertion_failures_are_errors_that_leave_the_tree_unchanged() {
     bad.l[0] = f64::NAN;
     let err = t.add(bad).unwrap_err();
     assert!(err.to_string().starts_with("sprite 1:"), "{err}");
+}
+
+/// Tree mip-mapping (section 6): every cell's mean, at every level, equals the mean of the
+/// brute-force composite over the samples in that cell; a footprint wider than the cube
+/// reads the root cell's mean, a zero footprint the full lookup.
+#[test]
+fn tree_mip_means_equal_brute_force_cell_averages() {
+    use fresco_sprites::tree_mip::TreeMip;
+    use std::collections::HashMap;
+    let mut rng = Rng::new(77);
+    let mut t = tree(2, 8);
+    for k in 0..200 {
+        let _ = t.add(random_sprite(&mut rng, None, k));
+    }
+    let samples: Vec<Query> = (0..20_000).map(|_| random_query(&mut rng)).collect();
+    let mip = TreeMip::new(&t, &samples);
+    let order = t.user_order();
+    let e = t.config().n.trailing_zeros();
+    let depth = t.memory().depth;
+    assert!(depth >= 3, "{depth}");
+    for level in 0..depth {
+        let shift = 32 - e * (level + 1);
+        let mut groups: HashMap<[u32; 3], ([f64; 4], usize)> = HashMap::new();
+        for q in &samples {
+            let Some(f) = t.fixed_inside(q.p) else {
+                continue;
+            };
+            let c = t.brute_force(&order, q);
+            let g = groups.entry(f.map(|v| v >> shift)).or_default();
+            for (s, v) in g.0.iter_mut().zip(c) {
+                *s += v as f64;
+            }
+            g.1 += 1;
+        }
+        let mut checked = 0;
+        for q in samples.iter().take(3000) {
+            let f = t.fixed_inside(q.p).unwrap();
+            // None: the descent ends above this level here.
+            let Some(m) = mip.mean_at(&t, q.p, level) else {
+                continue;
+            };
+            let g = groups[&f.map(|v| v >> shift)];
+            for k in 0..4 {
+                let want = g.0[k] / g.1 as f64;
+                assert!(
+                    (m[k] as f64 - want).abs() < 1e-6,
+                    "level {level}: {m:?} vs {want} ({} samples)",
+                    g.1
+                );
+            }
+            checked += 1;
+        }
+        assert!(checked > 50, "level {level}: {checked} cells checked");
+    }
+    let q = samples[0];
+    let root = mip.lookup(&t, &q, 100.0);
+    assert_eq!(Some(root), mip.mean_at(&t, q.p, 0));
+    assert_eq!(mip.lookup(&t, &q, 0.0), t.lookup(&q));
 }

@@ -25,9 +25,12 @@
 //!    correspondences);
 //! 5. a final global BA; if images are left that can start a model of their own, the next
 //!    model is built from them. Models sharing tracks are merged (a similarity from their
-//!    common points by Umeyama in RANSAC, two-way reprojection checks), adjusted and grown
-//!    again. Models are returned largest first; input that cannot start any model is reported
-//!    as degenerate, with the reason.
+//!    common points by Umeyama in RANSAC, two-way reprojection checks); models sharing too few
+//!    consistent points are merged through the verified pairs between their images
+//!    (`merge_through_matches.rs`: rotation from a connecting pair or an image's PnP pose,
+//!    scale and translation from the connecting 2D-3D correspondences). A merged model is
+//!    adjusted and grown again. Models are returned largest first; input that cannot start
+//!    any model is reported as degenerate, with the reason.
 
 use fresco_core::config::{ConfigError, require};
 use std::cell::RefCell;
@@ -46,6 +49,7 @@ use crate::geometry::pnp::{PnpConfig, estimate_pose};
 use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
 use crate::geometry::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
 use crate::geometry::two_view::Correspondence;
+use crate::mapping::merge_through_matches::{join_models, similarity_through_matches};
 use crate::mapping::tracks::{PairMatches, Tracks, build_tracks};
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
@@ -85,7 +89,8 @@ pub struct MapperInput {
 /// Mapper settings; defaults follow COLMAP's incremental mapper where it has one.
 #[derive(Clone, Debug, Serialize)]
 pub struct MapperConfig {
-    /// Fewest verified inliers of an initial pair. Default: `100`.
+    /// Fewest verified inliers of an initial pair; when no pair starts a model, halved once
+    /// (but not below `init_min_points`), as COLMAP relaxes its initialisation. Default: `100`.
     pub init_min_inliers: usize,
     /// Smallest median triangulation angle of an initial pair, degrees. Default: `16.0` (COLMAP's);
     /// halved once if no pair reaches it.
@@ -157,6 +162,18 @@ pub struct MapperConfig {
     /// Default: `8.0`: the two models have not been adjusted together yet, so their drift adds to
     /// the 4 px kept after adjustment.
     pub merge_max_error_px: f64,
+    /// Models that share too few consistent points are merged through the verified pairs
+    /// between their images (`merge_through_matches.rs`: the rotation from a connecting
+    /// pair's relative pose, scale and translation from the 2D-3D correspondences of the
+    /// connecting matches). Default: `true`.
+    pub merge_through_matches: bool,
+    /// Fewest 2D-3D correspondences of the connecting matches (a keypoint of one model's
+    /// image matched to a point of the other) that one similarity must explain within
+    /// `merge_max_error_px` (and at least `retry_min_inlier_ratio` of them) for a merge
+    /// through matches. Default: `15`: as `retry_min_inliers`, the fewest correspondences
+    /// that register one image on retry, here spread over the images of two models, with 4
+    /// unknowns fitted instead of 6.
+    pub merge_min_matches: usize,
 }
 
 impl Default for MapperConfig {
@@ -186,6 +203,8 @@ impl Default for MapperConfig {
             retry_min_inlier_ratio: 0.25,
             merge_min_points: 6,
             merge_max_error_px: 8.0,
+            merge_through_matches: true,
+            merge_min_matches: 15,
         }
     }
 }
@@ -276,6 +295,12 @@ impl MapperConfig {
             "merge_min_points",
             self.merge_min_points,
             ">= 3 (a similarity's sample)",
+        )?;
+        require(
+            self.merge_min_matches >= 3,
+            "merge_min_matches",
+            self.merge_min_matches,
+            ">= 3 (the sample of scale and translation, and one check)",
         )
     }
 }
@@ -367,7 +392,7 @@ pub enum MapperError {
 // and for registration through a pair (`Builder::register_through_pair`).
 
 /// `cam2_from_cam1` (`|t| = 1`) and which of `pts` (pixels of image 1, image 2) are inliers.
-fn estimate_relative_pose(
+pub(crate) fn estimate_relative_pose(
     c1: &Camera,
     c2: &Camera,
     pts: &[(Point2<f64>, Point2<f64>)],
@@ -1430,11 +1455,15 @@ fn initial_model<'a>(
         .map(|p| p.inliers.len())
         .max()
         .unwrap_or(0);
-    candidates.retain(|p| p.inliers.len() >= config.init_min_inliers);
+    // COLMAP relaxes its initialisation once when no model starts: half the inliers, half
+    // the angle (IncrementalPipeline, "relax initialization constraints").
+    let relaxed_inliers =
+        (config.init_min_inliers / 2).max(config.init_min_points.min(config.init_min_inliers));
+    candidates.retain(|p| p.inliers.len() >= relaxed_inliers);
     if candidates.is_empty() {
         return Ok(Err(Degeneracy::TooFewMatches {
             best_pair_inliers: best_inliers,
-            needed: config.init_min_inliers,
+            needed: relaxed_inliers,
         }));
     }
     let n_enough = candidates.len();
@@ -1449,8 +1478,13 @@ fn initial_model<'a>(
             .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
     });
     let mut best_angle: f64 = 0.0;
-    for min_angle in [config.init_min_angle_deg, 0.5 * config.init_min_angle_deg] {
-        for pair in candidates.iter().take(config.init_max_trials) {
+    for (min_inliers, min_angle) in [
+        (config.init_min_inliers, config.init_min_angle_deg),
+        (config.init_min_inliers, 0.5 * config.init_min_angle_deg),
+        (relaxed_inliers, 0.5 * config.init_min_angle_deg),
+    ] {
+        let pairs = candidates.iter().filter(|p| p.inliers.len() >= min_inliers);
+        for pair in pairs.take(config.init_max_trials) {
             match try_initial_pair(ctx, used, pair, min_angle)? {
                 InitAttempt::Ok(b) => return Ok(Ok(b)),
                 InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
@@ -1975,7 +2009,20 @@ fn merge_overlapping_models(
         for i in 0..models.len() {
             for j in i + 1..models.len() {
                 let merged = ctx.timed(Phase::MergeModels, || {
-                    merge_models(&models[i].rec, &models[j].rec, &ctx.tracks, ctx.config)
+                    let (a, b) = (&models[i].rec, &models[j].rec);
+                    merge_models(a, b, &ctx.tracks, ctx.config).or_else(|| {
+                        if !ctx.config.merge_through_matches {
+                            return None;
+                        }
+                        let (a_from_b, n) =
+                            similarity_through_matches(&ctx.input.pairs, a, b, ctx.config)?;
+                        tracing::debug!(
+                            "models of {} and {} images merged through {n} connecting 2D-3D correspondences",
+                            a.images.len(),
+                            b.images.len()
+                        );
+                        Some(join_models(a, b, &a_from_b))
+                    })
                 });
                 let Some(rec) = merged else {
                     continue;
@@ -2249,6 +2296,86 @@ mod tests {
         assert!(merge_models(&a, &b, &tracks, &strict).is_none());
     }
 
+    /// A 16-view ring tied weakly at two opposite places (between views 8 and 9, and 16 and
+    /// 1): every point seen across a cut keeps only one observation on its minority side, and
+    /// at most `WEAK` such points per image, so no image of one half has enough
+    /// correspondences with the other half's points to register (PnP needs 30, the retry 15)
+    /// and the halves share no 3D point. As the mixed-size templeSparseRing did, the mapper
+    /// builds two models of 8; merged through the connecting matches they make one model of
+    /// all 16 views with the true poses.
+    #[test]
+    fn ring_weak_at_two_places_gives_one_model() {
+        const WEAK: usize = 6;
+        let (mut truth, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 16,
+            points: 3000,
+            noise_px: 0.3,
+            seed: 11,
+            ..Default::default()
+        });
+        let side = |id: u32| id <= 8;
+        let mut per_image: BTreeMap<u32, usize> = BTreeMap::new();
+        let mut cross = 0;
+        for p in truth.points3d.values_mut() {
+            let a: Vec<TrackElement> = p
+                .track
+                .iter()
+                .filter(|e| side(e.image_id))
+                .copied()
+                .collect();
+            let b: Vec<TrackElement> = p
+                .track
+                .iter()
+                .filter(|e| !side(e.image_id))
+                .copied()
+                .collect();
+            if a.is_empty() || b.is_empty() {
+                continue;
+            }
+            let (major, minor) = if a.len() >= b.len() { (a, b) } else { (b, a) };
+            let lone = minor[0];
+            let count = per_image.entry(lone.image_id).or_default();
+            p.track = major;
+            if *count < WEAK && p.track.len() >= 2 {
+                *count += 1;
+                cross += 1;
+                p.track.push(lone);
+            }
+        }
+        let input = input_from_tracks(&truth);
+        assert!(cross >= 30, "{cross}");
+        for pair in &input.pairs {
+            if side(pair.image1) != side(pair.image2) {
+                assert!(pair.inliers.len() < 15, "{} {}", pair.image1, pair.image2);
+            }
+        }
+        let split = map(
+            &input,
+            &MapperConfig {
+                merge_through_matches: false,
+                ..config()
+            },
+            &NoProgress,
+        )
+        .unwrap();
+        let sizes: Vec<usize> = split.models.iter().map(|m| m.images.len()).collect();
+        assert_eq!(sizes, [8, 8]);
+        let out = map(&input, &config(), &NoProgress).unwrap();
+        assert_eq!(
+            out.models.len(),
+            1,
+            "{:?}",
+            out.models
+                .iter()
+                .map(|m| m.images.len())
+                .collect::<Vec<_>>()
+        );
+        let e = evaluate_poses(&out.models[0], &truth).unwrap();
+        assert_eq!(e.registered, 16);
+        assert!(e.max_rotation_deg < 0.2, "{e:?}");
+        assert!(e.max_centre_frac < 0.01, "{e:?}");
+    }
+
     /// Two unrelated image sets (no match between them) give two models, each complete.
     #[test]
     fn unrelated_sets_give_two_models() {
@@ -2289,6 +2416,38 @@ mod tests {
         assert_eq!(out.models[1].images.len(), 6);
         assert!(out.models[1].images.keys().all(|&id| id > 100));
         assert!(out.unregistered.is_empty());
+        // Chance "verified" pairs between the sets (40 random matches each, as repeated texture
+        // can give): no similarity explains their correspondences, the models stay apart.
+        let mut rng = Rng::new(5);
+        for (x, y) in [(1, 101), (2, 102), (3, 103)] {
+            let (nx, ny) = (
+                ia.images
+                    .iter()
+                    .find(|im| im.id == x)
+                    .unwrap()
+                    .keypoints
+                    .len(),
+                ia.images
+                    .iter()
+                    .find(|im| im.id == y)
+                    .unwrap()
+                    .keypoints
+                    .len(),
+            );
+            ia.pairs.push(MapperPair {
+                image1: x,
+                image2: y,
+                homography: false,
+                cam2_from_cam1: None,
+                inliers: (0..40)
+                    .map(|_| [rng.below(nx) as u32, rng.below(ny) as u32])
+                    .collect(),
+            });
+        }
+        let out = map(&ia, &config(), &NoProgress).unwrap();
+        let sizes: Vec<usize> = out.models.iter().map(|m| m.images.len()).collect();
+        assert_eq!(sizes, [8, 6]);
+        assert!(out.models[1].images.keys().all(|&id| id > 100));
     }
 
     /// Cameras that only rotate about one centre: reported as degenerate (no parallax), and

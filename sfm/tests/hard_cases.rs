@@ -1,0 +1,150 @@
+//! Issue 18's hard cases, on photos rendered by the synthetic generator (`fresco_datasets`,
+//! exact cameras): a 16-view ring at 320x240 around the torus on the plain black background,
+//! then fresco's features, exhaustive matching and mapping, each with its default settings
+//! (no tuning per case), as `fresco reconstruct` runs them. The photos carry no EXIF, so the
+//! focal prior is the default 1.2 x max(w, h) = 384 px. Each case prints its figures; the
+//! properties: every view in one model, rotation error <= 0.5 degrees after similarity
+//! alignment, and, where the true focal length differs from the prior, the estimate within 2%.
+//!
+//! None of the four meets every property yet (measured 2026-11-26, test profile), so they are
+//! `#[ignore]`d with their figures; `cargo test -p fresco-sfm --test hard_cases -- --ignored
+//! --nocapture` runs them:
+//! - (a) weak texture: no model. The best pair has 77 verified inliers; with the initialisation
+//!   relaxed to 50 the mapper reports "best pair's median triangulation angle 0.00 deg", i.e.
+//!   no pair tried got as far as the angle test (each triangulated fewer than 50 points);
+//! - (b) focal 4x the prior: one model of 16, rotation max 0.45 deg, focal 1322 px against
+//!   1536 (14% off; 2% asked): at a 12 degree field of view focal and distance trade off;
+//! - (b) focal 0.5x the prior: no model (the initial pairs' poses under a focal prior twice
+//!   too long triangulate too few points): focal from F before mapping is what is missing;
+//! - (c) weak at two places: one model of 16 (met), rotation median 0.51, max 0.72 deg (0.5
+//!   asked), focal 7.8% off;
+//! - the undamaged ring itself (`plain_ring_reference`): one model of 16, rotation median
+//!   0.38, max 0.77 deg, focal 362 px against 384 (5.7% off): at 320x240 on this torus the
+//!   self-calibration, not the weak links, limits (c)'s accuracy.
+
+use std::path::Path;
+
+use fresco_core::{NoProgress, colmap};
+use fresco_datasets::{SceneConfig, write_dataset};
+use fresco_sfm::evaluate::{PoseEvaluation, evaluate_poses};
+use fresco_sfm::features::photo_folder::{FeaturesConfig, extract_photo_folder};
+use fresco_sfm::mapping::reconstruct::{SfmConfig, SfmSummary, read_model_or_workspace, run_sfm};
+use fresco_sfm::matching::workspace_matching::{MatchStageConfig, match_workspace};
+
+const VIEWS: u32 = 16;
+
+fn scene(configure: impl FnOnce(&mut SceneConfig)) -> SceneConfig {
+    let mut config = SceneConfig {
+        views: VIEWS,
+        width: 320,
+        height: 240,
+        seed: 3,
+        ..Default::default()
+    };
+    configure(&mut config);
+    config
+}
+
+/// Renders `config`, lets `edit` change the photos, reconstructs with default settings and
+/// evaluates the first model against the generator's cameras.
+fn reconstruct(config: &SceneConfig, edit: impl Fn(&Path)) -> (SfmSummary, PoseEvaluation, f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    let summary = write_dataset(config, &data, &NoProgress).unwrap();
+    let true_focal = summary.camera_params[0];
+    edit(&data.join("images"));
+    let ws = dir.path().join("ws");
+    extract_photo_folder(
+        &data.join("images"),
+        &ws,
+        &FeaturesConfig::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    match_workspace(&ws, &MatchStageConfig::default(), &NoProgress).unwrap();
+    let sfm = run_sfm(&ws, &SfmConfig::default(), &NoProgress).unwrap();
+    let model = read_model_or_workspace(&ws).unwrap();
+    let truth = colmap::read_model(&data.join("sparse")).unwrap();
+    let e = evaluate_poses(&model, &truth).unwrap();
+    println!(
+        "models {:?}, registered {}/{}, rotation median {:.3} max {:.3} deg, centre median {:.4} max {:.4}, focal {:?} (true {true_focal:.1}, error {:.4}), {:.3} px",
+        sfm.models.iter().map(|m| m.images).collect::<Vec<_>>(),
+        e.registered,
+        e.reference_images,
+        e.median_rotation_deg,
+        e.max_rotation_deg,
+        e.median_centre_frac,
+        e.max_centre_frac,
+        sfm.focal_px,
+        e.median_focal_error,
+        e.mean_reprojection_px,
+    );
+    (sfm, e, true_focal)
+}
+
+fn assert_one_accurate_model(sfm: &SfmSummary, e: &PoseEvaluation) {
+    assert_eq!(sfm.models.len(), 1, "{:?}", sfm.models);
+    assert_eq!(e.registered, VIEWS as usize, "{e:?}");
+    assert!(e.max_rotation_deg <= 0.5, "{e:?}");
+}
+
+/// (a) A weakly textured object: the albedo's contrast reduced 10x, on the black background.
+#[test]
+#[ignore = "issue 18 not met: no model (see the module documentation)"]
+fn weak_texture_on_dark_background() {
+    let (sfm, e, _) = reconstruct(&scene(|c| c.albedo_contrast = 0.1), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+}
+
+/// (b) No EXIF, a narrow field of view: the true focal length 4x the default prior.
+#[test]
+#[ignore = "issue 18 not met: focal 14% off (see the module documentation)"]
+fn no_exif_focal_four_times_the_prior() {
+    let (sfm, e, _) = reconstruct(&scene(|c| c.focal = Some(4.0 * 384.0)), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+    assert!(e.median_focal_error <= 0.02, "{e:?}");
+}
+
+/// (b) No EXIF, a wide field of view: the true focal length half the default prior.
+#[test]
+#[ignore = "issue 18 not met: no model (see the module documentation)"]
+fn no_exif_focal_half_the_prior() {
+    let (sfm, e, _) = reconstruct(&scene(|c| c.focal = Some(0.5 * 384.0)), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+    assert!(e.median_focal_error <= 0.02, "{e:?}");
+}
+
+/// (c) A ring whose matches are weak at two opposite places: two views on each side darkened
+/// to 15% and blurred (3x3 box, twice), as under-exposed, shaken photos are. One model.
+#[test]
+#[ignore = "issue 18 not met: rotation max 0.72 deg (see the module documentation)"]
+fn ring_weak_at_two_opposite_places() {
+    let weaken = |images: &Path| {
+        let mut names: Vec<_> = std::fs::read_dir(images)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        names.sort();
+        for k in [3, 4, 11, 12] {
+            let p = &names[k];
+            let mut img = image::open(p).unwrap().to_rgb8();
+            for _ in 0..2 {
+                img = image::imageops::blur(&img, 1.0);
+            }
+            for px in img.pixels_mut() {
+                px.0 = px.0.map(|v| (v as f64 * 0.15).round() as u8);
+            }
+            img.save(p).unwrap();
+        }
+    };
+    let (sfm, e, _) = reconstruct(&scene(|_| {}), weaken);
+    assert_one_accurate_model(&sfm, &e);
+}
+
+/// The undamaged ring of the cases above (reference for their accuracy figures).
+#[test]
+#[ignore = "not met at 320x240: rotation max 0.77 deg (see the module documentation)"]
+fn plain_ring_reference() {
+    let (sfm, e, _) = reconstruct(&scene(|_| {}), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+}
