@@ -6,7 +6,7 @@
 # registered rasters, project = all rasters projected into the param filter's UVs,
 # vertex = per-vertex colour from rasters) texture the ground-truth mesh from the other 22,
 # and `fresco eval texture` scores every GLB with the same renderer and masks. Prints one line
-# per scene and method and writes datasets/reference/meshlab/texture_<scene>.json.
+# per scene and method (with the seam colour discrepancy of `fresco eval texture`) and writes datasets/reference/meshlab/texture_<scene>.json.
 #   bench/texture_meshlab.sh                 torus, temple, blob at detail 2
 #   SCENES="temple:2" bench/texture_meshlab.sh
 #   NO_BUILD=1 KEEP=1 bench/texture_meshlab.sh
@@ -62,9 +62,13 @@ for name, label, secs in [("model", "fresco texture", fresco_wall),
     e = json.loads((d / f"eval_{name}.json").read_text())
     rows[name] = {"label": label, "psnr": e["mean_psnr"], "psnr_gain": e["mean_psnr_gain"],
                   "ssim_gain": e["mean_ssim_gain"], "seconds": secs,
+                  "seam_discrepancy": (e.get("seam_discrepancy") or {}).get("mean"),
+                  "seam_length": (e.get("seam_discrepancy") or {}).get("seam_length"),
                   "per_view_psnr_gain": {k: v["psnr_gain"] for k, v in e["views"].items()}}
     t = f"{secs:6.1f} s" if secs is not None else "        "
-    print(f"{shape} d{detail} {label:40} psnr {e['mean_psnr']:6.2f}  gain-fitted {e['mean_psnr_gain']:6.2f}  ssim {e['mean_ssim_gain']:.4f}  {t}")
+    sd = rows[name]["seam_discrepancy"]
+    seam = f"seams {sd:5.2f}/255 over {rows[name]['seam_length']:.2f}" if sd is not None else ""
+    print(f"{shape} d{detail} {label:40} psnr {e['mean_psnr']:6.2f}  gain-fitted {e['mean_psnr_gain']:6.2f}  ssim {e['mean_ssim_gain']:.4f}  {t}  {seam}")
 best = max(rows[k]["psnr_gain"] for k in ("meshlab_param", "meshlab_project", "meshlab_vertex"))
 print(f"{shape} d{detail} fresco - best MeshLab filter: {rows['model']['psnr_gain'] - best:+.2f} dB (gain-fitted)")
 (out / f"texture_{shape}.json").write_text(json.dumps({"scene": shape, "detail": int(detail), "size": "640x480",

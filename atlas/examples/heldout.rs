@@ -1,8 +1,10 @@
 //! Held-out PSNR of fresco's texture and of the per-vertex colour baseline on a synthetic
 //! scene: `cargo run --release -p fresco-atlas --example heldout -- <shape> [detail] [exposure_jitter]`.
 //! Views 5 and 17 of 24 are held out; the texture is made from the other 22 with the
-//! ground-truth mesh and cameras. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
-//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, NOGAIN, SAVE (renders and diff to /tmp).
+//! ground-truth mesh and cameras. With COLMAP=<model dir> IMAGES=<dir> MESH=<ply> HELD=a,b
+//! a real scene's named photos are held out instead; SEAMS=a.glb,b.glb prints the seam colour
+//! discrepancy of textured GLBs. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
+//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
 
 use std::path::Path;
 use std::time::Instant;
@@ -15,6 +17,15 @@ use fresco_core::NoProgress;
 use fresco_datasets::{SceneConfig, Shape, write_dataset};
 
 fn main() {
+    // SEAMS=a.glb,b.glb: only print the seam colour discrepancy of textured GLBs.
+    if let Ok(list) = std::env::var("SEAMS") {
+        for path in list.split(',') {
+            let (mesh, textures) = fresco_core::gltf::read_glb(Path::new(path)).unwrap();
+            let s = fresco_atlas::seam_discrepancy(&mesh, &textures);
+            println!("{path}: {} faces, {s:?}", mesh.faces.len());
+        }
+        return;
+    }
     let args: Vec<String> = std::env::args().collect();
     let shape = Shape::from_name(args.get(1).map_or("torus", String::as_str)).expect("shape");
     let detail: u32 = args
@@ -38,23 +49,59 @@ fn main() {
         },
         ..SceneConfig::default()
     };
-    let t = Instant::now();
-    write_dataset(&cfg, dir.path(), &NoProgress).unwrap();
-    eprintln!("dataset {:.2} s", t.elapsed().as_secs_f64());
-    let scene = fresco_datasets::build_scene(&cfg).unwrap();
-    let mut mesh = scene.mesh.clone();
-    mesh.colors = None;
-    let rec = fresco_core::colmap::read_model(&dir.path().join("sparse")).unwrap();
-    let images = ImageSource::Folder(dir.path().join("images"));
-    let held = ["view_0005.png", "view_0017.png"];
+    // A real scene instead of a synthetic one: COLMAP=<model dir> IMAGES=<dir> MESH=<ply>
+    // HELD=a.png,b.png (no masks: the model's silhouette is compared).
+    let real = std::env::var("COLMAP").ok();
+    let (mesh, rec, images_dir, masks_dir, held): (
+        _,
+        _,
+        std::path::PathBuf,
+        Option<std::path::PathBuf>,
+        Vec<String>,
+    ) = if let Some(model) = &real {
+        let env =
+            |k: &str| std::env::var(k).unwrap_or_else(|_| panic!("{k} is needed with COLMAP"));
+        let mut mesh = fresco_core::ply::read_mesh(env("MESH")).unwrap();
+        mesh.colors = None;
+        (
+            mesh,
+            fresco_core::colmap::read_model(Path::new(model)).unwrap(),
+            env("IMAGES").into(),
+            None,
+            env("HELD").split(',').map(str::to_string).collect(),
+        )
+    } else {
+        let t = Instant::now();
+        write_dataset(&cfg, dir.path(), &NoProgress).unwrap();
+        eprintln!("dataset {:.2} s", t.elapsed().as_secs_f64());
+        let scene = fresco_datasets::build_scene(&cfg).unwrap();
+        let mut mesh = scene.mesh.clone();
+        mesh.colors = None;
+        (
+            mesh,
+            fresco_core::colmap::read_model(&dir.path().join("sparse")).unwrap(),
+            dir.path().join("images"),
+            Some(dir.path().join("masks")),
+            vec!["view_0005.png".into(), "view_0017.png".into()],
+        )
+    };
+    let images = ImageSource::Folder(images_dir.clone());
     let config = TextureConfig {
-        exclude_images: held.iter().map(|s| s.to_string()).collect(),
+        exclude_images: held.clone(),
         texels_per_pixel: var("TPP").unwrap_or(1.0),
         quality_weight: var("QW").unwrap_or(TextureConfig::default().quality_weight),
         outlier_rejection: var("NOOUT").is_none(),
+        outlier_sigmas: var("OUTSIG").unwrap_or(TextureConfig::default().outlier_sigmas),
+        outlier_min_difference: var("OUTMIN")
+            .unwrap_or(TextureConfig::default().outlier_min_difference),
         exposure_gains: var("NOGAIN").is_none(),
         bicubic: var("BILINEAR").is_none(),
         mip_bias: var("MIPBIAS").unwrap_or(TextureConfig::default().mip_bias),
+        blend_views: var("NOBLEND").is_none(),
+        blend_min_quality: var("BLENDQ").unwrap_or(TextureConfig::default().blend_min_quality),
+        blend_tolerance: var("BLENDTOL").unwrap_or(TextureConfig::default().blend_tolerance),
+        blend_sigmas: var("BLENDSIGMA").unwrap_or(TextureConfig::default().blend_sigmas),
+        blend_fade_texels: var("BLENDFADE").unwrap_or(TextureConfig::default().blend_fade_texels),
         unwrap_stretch_iterations: var("SWEEPS")
             .map_or(TextureConfig::default().unwrap_stretch_iterations, |v| {
                 v as u32
@@ -78,10 +125,14 @@ fn main() {
         textures: vec![],
     };
     println!(
-        "{} detail {detail}: {} faces, {} charts, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s wall, {cpu:.2} CPU-s, load {} {:?}",
+        "{} detail {detail}: {} faces, {} charts, seam discrepancy {:.2} (p90 {:.2}) over {:.3} of {:.3}, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s wall, {cpu:.2} CPU-s, load {} {:?}",
         shape.name(),
         summary.faces,
         summary.charts,
+        summary.seams.mean,
+        summary.seams.p90,
+        summary.seams.seam_length,
+        summary.seams.edge_length,
         summary.atlas_size,
         summary.texels_per_unit,
         summary.target_texels_per_unit,
@@ -94,18 +145,19 @@ fn main() {
             .unwrap_or("?"),
         summary.seconds
     );
-    for h in held {
+    for h in &held {
+        let h = h.as_str();
         let im = rec.image_by_name(h).unwrap();
         let cam = &rec.cameras[&im.camera_id];
-        let photo = image::open(dir.path().join("images").join(h))
-            .unwrap()
-            .into_rgb8();
-        let mask = image::open(dir.path().join("masks").join(format!("{h}.png")))
-            .unwrap()
-            .into_luma8();
+        let photo = image::open(images_dir.join(h)).unwrap().into_rgb8();
+        let mask = masks_dir.as_ref().map(|d| {
+            image::open(d.join(format!("{h}.png")))
+                .unwrap()
+                .into_luma8()
+        });
         for (name, m) in [("texture", &model), ("vertex", &baseline)] {
             let r = render_textured(m, cam, &im.cam_from_world, cfg.supersample).unwrap();
-            let cm = comparison_mask(&r, Some(&mask));
+            let cm = comparison_mask(&r, mask.as_ref());
             let c = compare_to_photo(&r.image, &photo, &cm);
             let cmp_gains = c.gains;
             fn c_gain(c: &usize, g: &[f64; 3]) -> f64 {

@@ -61,6 +61,22 @@ pub struct TextureConfig {
     /// torus +0.3 / +0.4 dB, blob +0.3 / +0.2, temple unchanged, whose views are all coarser
     /// than its texels).
     pub mip_bias: f64,
+    /// Blend, per texel, the graph cut's view with the other views that see it nearly as
+    /// well and agree with it (`fusion.rs`). Default true.
+    pub blend_views: bool,
+    /// Smallest quality of a blended view relative to the best view of the face, in [0, 1].
+    /// Default 0.5.
+    pub blend_min_quality: f64,
+    /// Largest difference (any channel, colour in [0, 1], after the gains) between a blended
+    /// view and the cut's view at a texel. Default 0.08 (about 20/255).
+    pub blend_tolerance: f64,
+    /// The blend's tolerance grows to this many robust standard deviations of the views'
+    /// distances to the cut's colour where they scatter more than `blend_tolerance` (0: the
+    /// fixed tolerance). Default 2.
+    pub blend_sigmas: f64,
+    /// A view's weight ramps up over this many texels from the edge of the region where it
+    /// is valid. Default 4.
+    pub blend_fade_texels: f64,
     /// Images (by name) kept out of the texture, e.g. held out for evaluation. Default empty.
     pub exclude_images: Vec<String>,
     /// Also write `model.obj` + `model.mtl` beside the GLB. Default false.
@@ -86,6 +102,11 @@ impl Default for TextureConfig {
             unwrap_stretch_iterations: 2,
             bicubic: true,
             mip_bias: 0.5,
+            blend_views: true,
+            blend_min_quality: 0.5,
+            blend_tolerance: 0.08,
+            blend_sigmas: 2.0,
+            blend_fade_texels: 4.0,
             exclude_images: Vec::new(),
             write_obj: false,
         }
@@ -170,6 +191,30 @@ impl TextureConfig {
         if !(self.mip_bias.is_finite() && (0.0..=4.0).contains(&self.mip_bias)) {
             return bad("mip_bias", format!("{} is outside [0, 4]", self.mip_bias));
         }
+        if !(self.blend_min_quality.is_finite() && (0.0..=1.0).contains(&self.blend_min_quality)) {
+            return bad(
+                "blend_min_quality",
+                format!("{} is outside [0, 1]", self.blend_min_quality),
+            );
+        }
+        if !(self.blend_tolerance.is_finite() && (0.0..=1.0).contains(&self.blend_tolerance)) {
+            return bad(
+                "blend_tolerance",
+                format!("{} is outside [0, 1]", self.blend_tolerance),
+            );
+        }
+        if !(self.blend_sigmas.is_finite() && (0.0..=10.0).contains(&self.blend_sigmas)) {
+            return bad(
+                "blend_sigmas",
+                format!("{} is outside [0, 10]", self.blend_sigmas),
+            );
+        }
+        if !(self.blend_fade_texels.is_finite() && (1.0..=64.0).contains(&self.blend_fade_texels)) {
+            return bad(
+                "blend_fade_texels",
+                format!("{} is outside [1, 64]", self.blend_fade_texels),
+            );
+        }
         Ok(())
     }
 }
@@ -190,6 +235,11 @@ mod tests {
         assert!(c.bicubic);
         assert_eq!(c.mip_bias, 0.5);
         assert_eq!(c.unwrap_stretch_iterations, 2);
+        assert!(c.blend_views);
+        assert_eq!(c.blend_min_quality, 0.5);
+        assert_eq!(c.blend_tolerance, 0.08);
+        assert_eq!(c.blend_fade_texels, 4.0);
+        assert_eq!(c.blend_sigmas, 2.0);
         assert!(c.exclude_images.is_empty());
         c.check().unwrap();
     }

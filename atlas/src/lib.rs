@@ -7,7 +7,8 @@
 //!   writes `texture/atlas_<k>.png`, `texture/coverage_<k>.png`, `model.glb` (and
 //!   `charts.ply` when the mesh was unwrapped here, `model.obj`/`.mtl` on request).
 //! - [`vertex_colors`]: the paper's per-vertex colour baseline.
-//! - [`render_textured`], [`compare_to_photo`], [`comparison_mask`]: held-out evaluation.
+//! - [`render_textured`], [`compare_to_photo`], [`comparison_mask`]: held-out evaluation;
+//!   [`seam_discrepancy`]: colour jumps across chart boundaries.
 //!
 //! Building blocks: [`max_flow`] (Boykov–Kolmogorov), [`graph_cut`] (Kwatra's seam cut),
 //! [`fill::push_pull`]. Settings: [`TextureConfig`]; errors: [`TextureError`].
@@ -20,6 +21,7 @@ pub mod fill;
 mod fusion;
 pub mod graph_cut;
 pub mod max_flow;
+mod seams;
 mod texture;
 mod transfer;
 mod vertex_colors;
@@ -28,6 +30,7 @@ mod views;
 pub use config::TextureConfig;
 pub use error::TextureError;
 pub use evaluate::{PhotoComparison, compare_to_photo, comparison_mask, render_textured};
+pub use seams::{SeamDiscrepancy, seam_discrepancy};
 pub use texture::{
     TextureInputs, TextureSummary, TexturedModel, Timings, ViewGain, texture, texture_mesh,
 };

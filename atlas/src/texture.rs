@@ -84,6 +84,8 @@ pub struct TextureSummary {
     pub coverage: f64,
     /// (texel, view) pairs dropped as photometric outliers.
     pub outlier_texels: usize,
+    /// Colour jumps across the chart boundaries of the result (`seams.rs`).
+    pub seams: crate::SeamDiscrepancy,
     pub gains: Vec<ViewGain>,
     pub seconds: Timings,
     pub warnings: Vec<String>,
@@ -234,6 +236,7 @@ pub fn texture(
     } else {
         0.0
     };
+    summary.seams = crate::seam_discrepancy(&mesh, &textures).unwrap_or_default();
     summary.seconds.fill = t.elapsed().as_secs_f64();
     Ok((TexturedModel { mesh, textures }, masks, summary))
 }

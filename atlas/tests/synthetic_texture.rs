@@ -229,13 +229,15 @@ fn a_highlight_painted_into_one_view_leaves_no_trace() {
     let p99 = brighter[brighter.len() * 99 / 100];
     let p1 = brighter[brighter.len() / 100];
     let signed = brighter.iter().sum::<i32>() as f64 / brighter.len() as f64;
-    // No bright trace (the disc was more than 100/255 brighter): the brightening is no more
-    // skewed than the darkening (99th percentile within 3/255 of the 1st's magnitude, and
-    // under 20/255) and averages under 1/255. What differs otherwise is which clean view a
-    // texel took at the pattern's edges, symmetric, within 3.5/255 on average (measured with
-    // the bicubic lookup: 3.19; 2.43 with the bilinear one, whose blur hid view changes).
+    // No bright trace (the disc was more than 100/255 brighter): the brightening averages
+    // under 1/255 and its 99th percentile stays under 10/255 (the level of the symmetric
+    // view-change differences before views were blended: 1st / 99th percentiles -10 / +10);
+    // the mean absolute difference is within the 3/255. Measured with blending:
+    // mean 1.86, brightening mean 0.30, percentiles -3 / +7 (the blend averages away the
+    // view changes in both directions, so the old symmetry check, 99th within 3 of the 1st's
+    // magnitude, no longer has a noise floor to compare with).
     assert!(
-        mean <= 3.5 && p99 <= 20 && p99 <= -p1 + 3 && signed <= 1.0,
+        mean <= 3.0 && p99 <= 10 && signed <= 1.0,
         "inside the highlight: mean difference {mean:.2}/255, brightening: mean {signed:.2}, 1st percentile {p1}, 99th {p99} (/255)"
     );
 }

@@ -147,8 +147,10 @@ fn texture(args: TextureEvalArgs) -> anyhow::Result<serde_json::Value> {
         ssim += c.ssim_gain / args.views.len() as f64;
         per_view.insert(name.clone(), serde_json::to_value(&c)?);
     }
+    let seams = fresco_atlas::seam_discrepancy(&model.mesh, &model.textures);
     Ok(serde_json::json!({
         "model": args.model,
+        "seam_discrepancy": seams,
         "mean_psnr": psnr,
         "mean_psnr_gain": psnr_gain,
         "mean_ssim_gain": ssim,

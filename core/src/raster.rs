@@ -943,8 +943,9 @@ fn shade_sample(
 }
 
 /// Bilinear lookup at (`u`, `v`) (glTF: u right, v down, texel centres at `(i + 0.5) / n`),
-/// clamped to the edge texels.
-fn sample_bilinear(texture: &RgbImage, u: f64, v: f64) -> [f32; 3] {
+/// clamped to the edge texels; colour in [0, 1]. The renderer's texture lookup, public so
+/// that texture metrics read a texture exactly as it is rendered.
+pub fn sample_bilinear(texture: &RgbImage, u: f64, v: f64) -> [f32; 3] {
     let (w, h) = (texture.width() as usize, texture.height() as usize);
     let x = (u * w as f64 - 0.5).clamp(0.0, (w - 1) as f64);
     let y = (v * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
