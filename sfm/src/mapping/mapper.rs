@@ -975,10 +975,9 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// Completes, then merges, the points seen by `images` (None: every point); returns
-    /// (observations added, merges).
-    fn complete_and_merge(&mut self, images: Option<&BTreeSet<u32>>) -> (usize, usize) {
-        let pids: Vec<u64> = match images {
+    /// Ids of the points seen by `images` (None: every point), in id order.
+    fn points_seen_by(&self, images: Option<&BTreeSet<u32>>) -> Vec<u64> {
+        match images {
             None => self.rec.points3d.keys().copied().collect(),
             Some(set) => {
                 let mut v: BTreeSet<u64> = BTreeSet::new();
@@ -989,7 +988,13 @@ impl<'a> Builder<'a> {
                 }
                 v.into_iter().collect()
             }
-        };
+        }
+    }
+
+    /// Completes, then merges, the points seen by `images` (None: every point); returns
+    /// (observations added, merges).
+    fn complete_and_merge(&mut self, images: Option<&BTreeSet<u32>>) -> (usize, usize) {
+        let pids = self.points_seen_by(images);
         let mut added = 0;
         for &pid in &pids {
             added += self.complete_point(pid);
@@ -1014,18 +1019,7 @@ impl<'a> Builder<'a> {
     /// points left with fewer than two observations or too small a triangulation angle.
     /// `images`: only points seen by these images are checked (None: all).
     fn filter_points(&mut self, images: Option<&BTreeSet<u32>>) -> usize {
-        let pids: Vec<u64> = match images {
-            None => self.rec.points3d.keys().copied().collect(),
-            Some(set) => {
-                let mut v: BTreeSet<u64> = BTreeSet::new();
-                for id in set {
-                    if let Some(im) = self.rec.images.get(id) {
-                        v.extend(im.point3d_ids.iter().flatten());
-                    }
-                }
-                v.into_iter().collect()
-            }
-        };
+        let pids = self.points_seen_by(images);
         let mut removed = 0;
         for pid in pids {
             let Some(point) = self.rec.points3d.get(&pid) else {
