@@ -464,30 +464,17 @@ fn unfold_template(
         let area2 =
             (q[1][0] - q[0][0]) * (q[2][1] - q[0][1]) - (q[1][1] - q[0][1]) * (q[2][0] - q[0][0]);
         if area2 > 1e-12 {
-            let lo_i = q
-                .iter()
-                .map(|x| x[0])
-                .fold(f64::INFINITY, f64::min)
-                .ceil()
-                .max(-half);
-            let hi_i = q
-                .iter()
-                .map(|x| x[0])
-                .fold(f64::NEG_INFINITY, f64::max)
-                .floor()
-                .min(half);
-            let lo_j = q
-                .iter()
-                .map(|x| x[1])
-                .fold(f64::INFINITY, f64::min)
-                .ceil()
-                .max(-half);
-            let hi_j = q
-                .iter()
-                .map(|x| x[1])
-                .fold(f64::NEG_INFINITY, f64::max)
-                .floor()
-                .min(half);
+            // The grid points inside the triangle's bounding box along one tangent axis.
+            let grid_span = |axis: usize| {
+                let (lo, hi) = q
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                        (lo.min(x[axis]), hi.max(x[axis]))
+                    });
+                (lo.ceil().max(-half), hi.floor().min(half))
+            };
+            let (lo_i, hi_i) = grid_span(0);
+            let (lo_j, hi_j) = grid_span(1);
             let mut j = lo_j;
             while j <= hi_j {
                 let mut i = lo_i;
