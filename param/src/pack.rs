@@ -132,7 +132,7 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
         let (tpu, rasters, placements) = search_density(charts, &base, total, w, cfg.gutter)?;
         return Ok(finish(placements, 1, tpu, &base, &rasters));
     }
-    if w % SEARCH_SIZE == 0 {
+    if w.is_multiple_of(SEARCH_SIZE) {
         // Large atlas, a multiple k of SEARCH_SIZE: the charts are packed at SEARCH_SIZE with
         // the gutter divided by k (rounded up) and the placement is scaled by k. Every chart
         // stays inside the k x k blocks of its conservative raster there, so the charts stay
@@ -1034,9 +1034,12 @@ mod tests {
         assert!(p.atlases >= 2);
     }
 
+    /// A chart's UVs and triangles.
+    type Chart = (Vec<Point2<f64>>, Vec<[u32; 3]>);
+
     /// Random charts: fans of 3 to 9 vertices around a centre with radii 0.3 to 1 (convex
     /// and concave), sizes over a decade.
-    fn random_charts(n: usize, seed: u64) -> Vec<(Vec<Point2<f64>>, Vec<[u32; 3]>)> {
+    fn random_charts(n: usize, seed: u64) -> Vec<Chart> {
         let mut rng = fresco_core::Rng::new(seed);
         (0..n)
             .map(|_| {
@@ -1057,7 +1060,7 @@ mod tests {
             .collect()
     }
 
-    fn shapes(charts: &[(Vec<Point2<f64>>, Vec<[u32; 3]>)]) -> Vec<ChartShape<'_>> {
+    fn shapes(charts: &[Chart]) -> Vec<ChartShape<'_>> {
         charts
             .iter()
             .map(|(uv, f)| ChartShape {
@@ -1132,12 +1135,7 @@ mod tests {
 
     /// Charts of one atlas: every texel inside [gutter, size - gutter), and no two charts
     /// within `gutter` texels of each other (Chebyshev distance, texel to texel).
-    fn assert_apart(
-        charts: &[(Vec<Point2<f64>>, Vec<[u32; 3]>)],
-        p: &Packing,
-        size: u32,
-        gutter: u32,
-    ) {
+    fn assert_apart(charts: &[Chart], p: &Packing, size: u32, gutter: u32) {
         let (n, g) = (size as i64, gutter as i64);
         let mut owner = vec![u32::MAX; (n * n) as usize];
         for (i, ((uv, f), pl)) in charts.iter().zip(&p.placements).enumerate() {
