@@ -44,18 +44,19 @@ pub struct TextureConfig {
     /// Texels of misregistration the outlier test tolerates: a view's colour is compared
     /// with the range (per-channel minimum to maximum) the other views show within this many
     /// texels, so that an edge of the photos' content displaced by a slightly wrong surface
-    /// does not count as disagreement (0: compare colours at the texel only). Default 1.
+    /// does not count as disagreement (0: compare colours at the texel only). Default 2.
     pub outlier_window: u32,
     /// A view that disagrees with the consensus still counts as consistent when it agrees
     /// with another view seeing the face from within this angle, degrees: a wrong surface
     /// shifts what nearby views see alike, while a highlight or occluder of one photo is in
-    /// that photo only (0: no such exception). Default 25.
+    /// that photo only (0: no such exception). Default 45 (real temple, views about 22 deg
+    /// apart on a ring: 25 deg recovers less, `bench/RESULTS.md` issue 14 session 4).
     pub outlier_neighbour_deg: f64,
     /// A view's rejection is kept at a texel only when it lies within two texels of a patch:
     /// a texel where at least this fraction of the view's texels within two texels are
     /// rejected too (a highlight or occluder is a patch, while a wrong surface makes views
     /// disagree along thin lines, the edges of the content). 0 keeps every rejection.
-    /// Default 0.5.
+    /// Default 0.8.
     pub outlier_patch_fraction: f64,
     /// Weight of the view-quality preference per texel against Kwatra's seam cost in the
     /// graph cuts. Default 0.2.
@@ -122,9 +123,9 @@ impl Default for TextureConfig {
             outlier_rejection: true,
             outlier_sigmas: 3.0,
             outlier_min_difference: 0.12,
-            outlier_window: 1,
-            outlier_neighbour_deg: 25.0,
-            outlier_patch_fraction: 0.5,
+            outlier_window: 2,
+            outlier_neighbour_deg: 45.0,
+            outlier_patch_fraction: 0.8,
             quality_weight: 0.2,
             seam_epsilon: 0.05,
             unwrap_stretch_iterations: 2,
@@ -302,9 +303,9 @@ mod tests {
         assert_eq!(c.blend_tolerance, 0.08);
         assert_eq!(c.blend_fade_texels, 4.0);
         assert_eq!(c.blend_sigmas, 2.0);
-        assert_eq!(c.outlier_window, 1);
-        assert_eq!(c.outlier_neighbour_deg, 25.0);
-        assert_eq!(c.outlier_patch_fraction, 0.5);
+        assert_eq!(c.outlier_window, 2);
+        assert_eq!(c.outlier_neighbour_deg, 45.0);
+        assert_eq!(c.outlier_patch_fraction, 0.8);
         assert_eq!(c.seam_leveling_smoothness, 0.1);
         assert!(c.exclude_images.is_empty());
         c.check().unwrap();
