@@ -78,9 +78,11 @@ pub struct PatchMatchConfig {
     /// Sweeps at each finer scale but the finest, which starts from the coarser scale's
     /// planes. Default 2.
     pub fine_iterations: usize,
-    /// Sweeps at the finest scale (full resolution) when there are coarser ones. Default 1:
-    /// most of the first pass's work is here (a full-resolution sweep costs 4x one at half
-    /// resolution), and the geometric pass sweeps the full resolution again.
+    /// Sweeps at the finest scale (full resolution) when there are coarser ones. Default 2.
+    /// Most of the first pass's work is here (a full-resolution sweep costs 4x one at half
+    /// resolution): 1 saves about a quarter of the dense stage's time for a slightly less
+    /// complete cloud (synthetic temple, 16 views at 640x480: completeness 87.9% instead
+    /// of 89.3%, 90th-percentile error 0.39% instead of 0.35% of the diagonal).
     pub finest_iterations: usize,
     /// Sources whose costs are averaged per hypothesis (the best ones), where no adaptive
     /// view weights are known. Default 2.
@@ -121,7 +123,7 @@ impl Default for PatchMatchConfig {
             scales: 3,
             iterations: 6,
             fine_iterations: 2,
-            finest_iterations: 1,
+            finest_iterations: 2,
             top_k: 2,
             adaptive_views: true,
             min_ref_std: 0.002,
