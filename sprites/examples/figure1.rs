@@ -377,9 +377,10 @@ fn rate_of(n: usize, pass: &(dyn Fn() -> f64 + Sync)) -> (f64, f64) {
     (best, best_cpu)
 }
 
-/// `--profile ORDER [PASSES]`: only the gears lookups on this thread, `PASSES` passes (default
-/// 20) in `surface` or `random` order, through `lookup` or (`surface-many`, `random-many`)
-/// `lookup_many`; for `perf stat` / `perf record` (`PASSES=0` measures the set-up).
+/// `--profile ORDER [PASSES [PATHS]]`: only the gears lookups on this thread, `PASSES` passes
+/// (default 20) in `surface` or `random` order, through `lookup_plain`, `lookup` and
+/// `lookup_many` in turn (or only the comma-separated `PATHS`); for `perf record`
+/// (`PASSES=0` measures the set-up).
 fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order: &str) {
     let passes: usize = std::env::args()
         .skip_while(|a| a != "--profile")
@@ -400,7 +401,17 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
     } else {
         surface
     };
-    // The three lookups in turn, pass after pass, so the machine's load weighs on each alike.
+    // FIGURE1_QUERIES=n: only the first n queries, n times more passes (cache-resident runs).
+    let (qs, passes) = match std::env::var("FIGURE1_QUERIES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        Some(n) if n < qs.len() => (&qs[..n], passes * (qs.len() / n)),
+        _ => (qs, passes),
+    };
+    // The three lookups in turn, pass after pass, so the machine's load weighs on each alike
+    // (or only those named by a third argument, e.g. `lookup_many`, for perf).
+    let only: Option<String> = std::env::args().skip_while(|a| a != "--profile").nth(3);
     let names = ["lookup_plain (before)", "lookup", "lookup_many"];
     let mut cpu = [0f64; 3];
     let mut wall = [0f64; 3];
@@ -408,6 +419,12 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
     let mut out = vec![[0f32; 4]; qs.len()];
     for _ in 0..passes {
         for (k, name) in names.iter().enumerate() {
+            if only
+                .as_ref()
+                .is_some_and(|o| !o.split(',').any(|p| name.starts_with(p)))
+            {
+                continue;
+            }
             let (t, c) = (Instant::now(), cpu_seconds());
             match *name {
                 "lookup_many" => tree.lookup_many(qs, &mut out),
@@ -426,7 +443,7 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
         }
     }
     let n = (passes * qs.len()) as f64;
-    for k in 0..3 {
+    for k in (0..3).filter(|&k| cpu[k] > 0.0) {
         println!(
             "{order} order, {}: {n} lookups, {:.1} M/s wall, {:.1} M per CPU-s on one thread (checksum {:.3})",
             names[k],
