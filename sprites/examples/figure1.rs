@@ -14,7 +14,9 @@ use fresco_core::{Mesh, Rng};
 use fresco_sprites::bake::BakeConfig;
 use fresco_sprites::octree::{self, OctreeConfig};
 use fresco_sprites::pipeline::{self, View};
-use fresco_sprites::render::{RenderConfig, Rest, downsample, orbit_camera, psnr, render};
+use fresco_sprites::render::{
+    RenderConfig, Rest, downsample, orbit_camera, per_query, psnr, render,
+};
 use fresco_sprites::scene::Scene;
 use fresco_sprites::tree_mip::TreeMip;
 use fresco_sprites::{Footprint, Query, SpriteTree};
@@ -217,10 +219,17 @@ fn main() {
         [bb.max.x, bb.max.y, bb.max.z],
     );
     let (camera, pose) = orbit_camera(lo, hi, 512, 512, 30.0, 20.0, 40.0).unwrap();
-    let img = render(&mesh, &rest, &camera, &pose, &shaded, &|q| {
-        let c = octree::trilinear(&tex, q.p.map(|v| v as f64)).unwrap_or([1.0, 0.0, 1.0]);
-        [c[0], c[1], c[2], 1.0]
-    })
+    let img = render(
+        &mesh,
+        &rest,
+        &camera,
+        &pose,
+        &shaded,
+        &per_query(|q| {
+            let c = octree::trilinear(&tex, q.p.map(|v| v as f64)).unwrap_or([1.0, 0.0, 1.0]);
+            [c[0], c[1], c[2], 1.0]
+        }),
+    )
     .unwrap();
     img.save(pictures.join("sprites_octree.png")).unwrap();
     bake_check(&mesh, root, pictures);
