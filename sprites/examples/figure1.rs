@@ -99,11 +99,11 @@ fn main() {
         let r_rate = rate(&random, &|q| tree.lookup(q));
         let f = |r: (f64, f64)| format!("{:.1} ({:.1})", r.0 / 1e6, r.1 / 1e6);
         if *case == "gears" {
-            // The goal case: every lookup path in both orders, the one before this layout
-            // (lookup_plain) included.
+            // The goal case: every lookup path in both orders (lookup_plain: the path before
+            // the lookup layout, each sprite tested in turn; all three share the pattern filter).
             for (order, qs) in [("surface", &surface), ("random", &random)] {
                 notes.push(format!(
-                    "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (before) {}, lookup {}, lookup_many {}",
+                    "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (no layout) {}, lookup {}, lookup_many {}",
                     f(rate(qs, &|q| tree.lookup_plain(q))),
                     f(rate(qs, &|q| tree.lookup(q))),
                     f(rate_many(qs, &tree)),
@@ -421,7 +421,7 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
     // The three lookups in turn, pass after pass, so the machine's load weighs on each alike
     // (or only those named by a third argument, e.g. `lookup_many`, for perf).
     let only: Option<String> = std::env::args().skip_while(|a| a != "--profile").nth(3);
-    let names = ["lookup_plain (before)", "lookup", "lookup_many"];
+    let names = ["lookup_plain (no layout)", "lookup", "lookup_many"];
     let mut cpu = [0f64; 3];
     let mut wall = [0f64; 3];
     let mut sums = [0f64; 3];
