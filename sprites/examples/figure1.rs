@@ -410,12 +410,14 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
     } else {
         surface
     };
-    // FIGURE1_QUERIES=n: only the first n queries, n times more passes (cache-resident runs).
-    let (qs, passes) = match std::env::var("FIGURE1_QUERIES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-    {
-        Some(n) if n < qs.len() => (&qs[..n], passes * (qs.len() / n)),
+    // FIGURE1_QUERIES=n: only n queries (from FIGURE1_OFFSET, default 0), proportionally more
+    // passes (cache-resident runs).
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<usize>().ok());
+    let (qs, passes) = match env("FIGURE1_QUERIES") {
+        Some(n) if n < qs.len() => {
+            let o = env("FIGURE1_OFFSET").unwrap_or(0).min(qs.len() - n);
+            (&qs[o..o + n], passes * (qs.len() / n))
+        }
         _ => (qs, passes),
     };
     // The three lookups in turn, pass after pass, so the machine's load weighs on each alike
