@@ -1881,9 +1881,10 @@ fn merge_models(
     Some(merged)
 }
 
-/// Tries `pair` as the start of a model: its relative pose (from the two-view geometry, else
-/// the five-point essential matrix under the prior intrinsics), its points, judged by their
-/// median triangulation angle against `min_angle_deg`, then a global adjustment and filtering.
+/// Tries `pair` as the start of a model: its relative pose (from the two-view geometry; if
+/// none, or if it triangulates fewer than `min_points`, the five-point essential matrix under
+/// the prior intrinsics), its points, judged by their median triangulation angle against
+/// `min_angle_deg`, then a global adjustment and filtering.
 fn try_initial_pair<'a>(
     ctx: &'a MapperContext<'a>,
     used: &'a BTreeSet<u32>,
@@ -1896,31 +1897,60 @@ fn try_initial_pair<'a>(
     let im2 = ctx.image(pair.image2);
     let c1 = &ctx.input.cameras[&im1.camera_id];
     let c2 = &ctx.input.cameras[&im2.camera_id];
-    let pose = match pair.cam2_from_cam1 {
-        Some(p) => p,
-        None => {
-            let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
-                .inliers
-                .iter()
-                .map(|m| (im1.keypoints[m[0] as usize], im2.keypoints[m[1] as usize]))
-                .collect();
-            match estimate_relative_pose(
-                c1,
-                c2,
-                &pts,
-                (pair.image1 as u64) << 32 | pair.image2 as u64,
-            ) {
-                Some(p) => p.0,
-                None => return Ok(InitAttempt::Failed),
-            }
-        }
+    let estimate = || {
+        let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
+            .inliers
+            .iter()
+            .map(|m| (im1.keypoints[m[0] as usize], im2.keypoints[m[1] as usize]))
+            .collect();
+        estimate_relative_pose(
+            c1,
+            c2,
+            &pts,
+            (pair.image1 as u64) << 32 | pair.image2 as u64,
+        )
+        .map(|p| p.0)
     };
-    let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
-    b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
-    b.add_image(pair.image2, CamFromWorld(pose));
-    // Triangulate with a permissive angle first; the pair is judged by the median angle.
-    b.triangulation.min_angle_deg = 0.0;
-    b.extend_and_triangulate(pair.image1);
+    // The two-view geometry's pose first; when it triangulates too few points (an
+    // uncalibrated pair's pose comes from `E = Kᵀ F K`, and a fundamental matrix fitted to
+    // few, noisy matches of a weakly textured scene can put every point behind a camera),
+    // the five-point pose under the current intrinsics.
+    let mut poses = vec![];
+    if let Some(p) = pair.cam2_from_cam1 {
+        poses.push(Some(p));
+    }
+    poses.push(None);
+    let mut found = None;
+    for given in poses {
+        let Some(pose) = given.or_else(estimate) else {
+            continue;
+        };
+        let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
+        b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
+        b.add_image(pair.image2, CamFromWorld(pose));
+        // Triangulate with a permissive angle first; the pair is judged by the median angle.
+        b.triangulation.min_angle_deg = 0.0;
+        b.extend_and_triangulate(pair.image1);
+        tracing::debug!(
+            "initial pair {} {}: {} inliers, {} points triangulated ({} pose)",
+            pair.image1,
+            pair.image2,
+            pair.inliers.len(),
+            b.rec.points3d.len(),
+            if given.is_some() {
+                "two-view"
+            } else {
+                "five-point"
+            }
+        );
+        if b.rec.points3d.len() >= min_points {
+            found = Some(b);
+            break;
+        }
+    }
+    let Some(mut b) = found else {
+        return Ok(InitAttempt::Failed);
+    };
     let angles: Vec<f64> = b
         .rec
         .points3d
@@ -1931,16 +1961,6 @@ fn try_initial_pair<'a>(
             ray_angle(&c1, &c2, &p.position.coords).to_degrees()
         })
         .collect();
-    tracing::debug!(
-        "initial pair {} {}: {} inliers, {} points triangulated",
-        pair.image1,
-        pair.image2,
-        pair.inliers.len(),
-        b.rec.points3d.len()
-    );
-    if b.rec.points3d.len() < min_points {
-        return Ok(InitAttempt::Failed);
-    }
     let med = median(angles);
     if med < min_angle_deg {
         return Ok(InitAttempt::SmallAngle(med));
