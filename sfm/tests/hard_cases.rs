@@ -12,9 +12,10 @@
 //! - (a) weak texture: one model of 16 (was: no model), rotation median 0.52, max 0.92 deg
 //!   (0.5 asked), focal 2.9% off. The best pair (77 inliers) triangulated 0 points from the
 //!   two-view geometry's pose (`E = Kᵀ F K` of a fundamental matrix fitted to few, noisy
-//!   matches) and 76 from the five-point pose the mapper now falls back to;
-//! - (b) focal 4x and 0.5x the prior: one model of 16, rotation max 0.45 / 0.58 deg (0.5
-//!   asked); focal 14% / 3.7% off (2% asked, not met): the bundle adjustment's minimum on
+//!   matches) and 76 from the five-point pose, which the mapper's last initialisation pass
+//!   now tries;
+//! - (b) focal 4x and 0.5x the prior: one model of 16, rotation max 0.45 / 0.61 deg (0.5
+//!   asked); focal 14% / 3.8% off (2% asked, not met): the bundle adjustment's minimum on
 //!   these photos, and the ring is the configuration in which fundamental matrices do not
 //!   determine the focal length (see the tests); 4x runs in CI with its measured bound;
 //! - (b) on an irregular ring: the focal length from F replaces the default ("F-estimate");
@@ -117,13 +118,13 @@ fn no_exif_focal_four_times_the_prior() {
 }
 
 /// (b) No EXIF, a wide field of view: the true focal length half the default prior. One model
-/// of 16 (none in session 3); focal 184.9 px against 192 (3.7% off; 2% asked): the
+/// of 16 (none in session 3); focal 184.7 px against 192 (3.8% off; 2% asked): the
 /// adjustment's minimum again (at the true focal the mean reprojection error is 0.35% higher),
 /// and the ring's fundamental matrices are as uninformative as in the case above. Rotation
-/// median 0.36, max 0.58 degrees (0.5 asked) since the initial pair falls back to the
-/// five-point pose (before it: max 0.42 from another initial pair).
+/// median 0.39, max 0.61 degrees (0.5 asked); it depends on which relaxed pair starts the
+/// model (0.42 to 0.61 over this session's versions of the relaxed initialisation).
 #[test]
-#[ignore = "issue 18 not met: rotation max 0.58 deg, focal 3.7% off (see the documentation)"]
+#[ignore = "issue 18 not met: rotation max 0.61 deg, focal 3.8% off (see the documentation)"]
 fn no_exif_focal_half_the_prior() {
     let (sfm, e, _) = reconstruct(&scene(|c| c.focal = Some(0.5 * 384.0)), |_| {});
     assert_one_accurate_model(&sfm, &e);

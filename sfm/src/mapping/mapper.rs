@@ -1492,26 +1492,40 @@ fn initial_model<'a>(
     });
     let mut best_angle: f64 = 0.0;
     let relaxed_points = config.init_min_points.min((relaxed_inliers / 2).max(1));
-    for (min_inliers, min_angle, min_points) in [
+    // The last pass retries the relaxed pairs with the five-point pose when their two-view
+    // pose triangulates too few points (see `try_initial_pair`).
+    for (min_inliers, min_angle, min_points, five_point) in [
         (
             config.init_min_inliers,
             config.init_min_angle_deg,
             config.init_min_points,
+            false,
         ),
         (
             config.init_min_inliers,
             0.5 * config.init_min_angle_deg,
             config.init_min_points,
+            false,
         ),
         (
             relaxed_inliers,
             0.5 * config.init_min_angle_deg,
             relaxed_points,
+            false,
+        ),
+        (
+            relaxed_inliers,
+            0.5 * config.init_min_angle_deg,
+            relaxed_points,
+            true,
         ),
     ] {
         let pairs = candidates.iter().filter(|p| p.inliers.len() >= min_inliers);
         for pair in pairs.take(config.init_max_trials) {
-            match try_initial_pair(ctx, used, pair, min_angle, min_points)? {
+            if five_point && pair.cam2_from_cam1.is_none() {
+                continue; // already tried with the five-point pose
+            }
+            match try_initial_pair(ctx, used, pair, min_angle, min_points, five_point)? {
                 InitAttempt::Ok(b) => return Ok(Ok(b)),
                 InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
                 InitAttempt::Failed => {}
@@ -1882,8 +1896,7 @@ fn merge_models(
 }
 
 /// Tries `pair` as the start of a model: its relative pose (from the two-view geometry; if
-/// none, or if it triangulates fewer than `min_points`, the five-point essential matrix under
-/// the prior intrinsics), its points, judged by their median triangulation angle against
+/// none, or with `five_point`, the five-point essential matrix under the prior intrinsics), its points, judged by their median triangulation angle against
 /// `min_angle_deg`, then a global adjustment and filtering.
 fn try_initial_pair<'a>(
     ctx: &'a MapperContext<'a>,
@@ -1891,6 +1904,7 @@ fn try_initial_pair<'a>(
     pair: &MapperPair,
     min_angle_deg: f64,
     min_points: usize,
+    five_point: bool,
 ) -> Result<InitAttempt<'a>, MapperError> {
     let config = ctx.config;
     let im1 = ctx.image(pair.image1);
@@ -1911,46 +1925,40 @@ fn try_initial_pair<'a>(
         )
         .map(|p| p.0)
     };
-    // The two-view geometry's pose first; when it triangulates too few points (an
-    // uncalibrated pair's pose comes from `E = Kᵀ F K`, and a fundamental matrix fitted to
-    // few, noisy matches of a weakly textured scene can put every point behind a camera),
-    // the five-point pose under the current intrinsics.
-    let mut poses = vec![];
-    if let Some(p) = pair.cam2_from_cam1 {
-        poses.push(Some(p));
-    }
-    poses.push(None);
-    let mut found = None;
-    for given in poses {
-        let Some(pose) = given.or_else(estimate) else {
-            continue;
-        };
-        let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
-        b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
-        b.add_image(pair.image2, CamFromWorld(pose));
-        // Triangulate with a permissive angle first; the pair is judged by the median angle.
-        b.triangulation.min_angle_deg = 0.0;
-        b.extend_and_triangulate(pair.image1);
-        tracing::debug!(
-            "initial pair {} {}: {} inliers, {} points triangulated ({} pose)",
-            pair.image1,
-            pair.image2,
-            pair.inliers.len(),
-            b.rec.points3d.len(),
-            if given.is_some() {
-                "two-view"
-            } else {
-                "five-point"
-            }
-        );
-        if b.rec.points3d.len() >= min_points {
-            found = Some(b);
-            break;
-        }
-    }
-    let Some(mut b) = found else {
+    // The two-view geometry's pose, or the five-point pose under the current intrinsics: the
+    // last pass of `initial_model` retries with it the pairs whose two-view pose triangulated
+    // too few points (an uncalibrated pair's pose comes from `E = Kᵀ F K`, and a
+    // fundamental matrix fitted to few, noisy matches of a weakly textured scene can put
+    // every point behind a camera).
+    let given = if five_point {
+        None
+    } else {
+        pair.cam2_from_cam1
+    };
+    let Some(pose) = given.or_else(estimate) else {
         return Ok(InitAttempt::Failed);
     };
+    let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
+    b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
+    b.add_image(pair.image2, CamFromWorld(pose));
+    // Triangulate with a permissive angle first; the pair is judged by the median angle.
+    b.triangulation.min_angle_deg = 0.0;
+    b.extend_and_triangulate(pair.image1);
+    tracing::debug!(
+        "initial pair {} {}: {} inliers, {} points triangulated ({} pose)",
+        pair.image1,
+        pair.image2,
+        pair.inliers.len(),
+        b.rec.points3d.len(),
+        if given.is_some() {
+            "two-view"
+        } else {
+            "five-point"
+        }
+    );
+    if b.rec.points3d.len() < min_points {
+        return Ok(InitAttempt::Failed);
+    }
     let angles: Vec<f64> = b
         .rec
         .points3d
