@@ -288,6 +288,19 @@ pub fn principal_curvatures(
     radius: f64,
     columns_per_radius: f64,
 ) -> Curvatures {
+    principal_curvatures_where(mesh, normals, radius, columns_per_radius, |_| true)
+}
+
+/// [`principal_curvatures`] of the vertices where `selected` holds; the others get zero
+/// curvatures and direction (what a caller summing over a sample of the vertices needs:
+/// the protective grid of a large mesh).
+pub fn principal_curvatures_where(
+    mesh: &Mesh,
+    normals: &[Vector3<f64>],
+    radius: f64,
+    columns_per_radius: f64,
+    selected: impl Fn(usize) -> bool + Sync,
+) -> Curvatures {
     let mut h = radius / columns_per_radius;
     // Bound the grids: at most about 64M columns per axis (a needle-thin or huge mesh
     // gets coarser columns rather than exhausting memory).
@@ -301,7 +314,7 @@ pub fn principal_curvatures(
         .into_par_iter()
         .map(|v| {
             let n = normals[v];
-            if n.norm_squared() == 0.0 {
+            if n.norm_squared() == 0.0 || !selected(v) {
                 return (0.0, 0.0, Vector3::zeros(), 0.0);
             }
             let axis = n.iamax();

@@ -226,7 +226,8 @@ fn vulnerability(
 }
 
 /// Optimises the protective grid of `mesh` for the target `size` (module docs). `normals`
-/// and `curvatures` describe the surface whose features are to be protected.
+/// and `curvatures` describe the surface whose features are to be protected; vertices with
+/// a zero normal are left out (a caller may pass a sample of a large mesh's vertices).
 pub fn optimise(
     mesh: &Mesh,
     normals: &[Vector3<f64>],

@@ -19,6 +19,59 @@ fn key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))
 }
 
+/// The faces on an edge: up to two kept, `count` saying how many there are (an edge with
+/// more is non-manifold and never split, so which faces they are does not matter).
+#[derive(Clone, Copy, Default)]
+struct EdgeFaces {
+    faces: [u32; 2],
+    count: u32,
+}
+
+impl EdgeFaces {
+    fn push(&mut self, f: u32) {
+        if let Some(slot) = self.faces.get_mut(self.count as usize) {
+            *slot = f;
+        }
+        self.count += 1;
+    }
+
+    fn as_slice(&self) -> &[u32] {
+        &self.faces[..(self.count as usize).min(2)]
+    }
+
+    fn replace(&mut self, from: u32, to: u32) {
+        let n = (self.count as usize).min(2);
+        for x in &mut self.faces[..n] {
+            if *x == from {
+                *x = to;
+            }
+        }
+    }
+}
+
+/// A multiplicative hash of an edge key (the default SipHash dominated the refinement of
+/// large meshes; the keys are not adversarial). Iteration order is never used.
+#[derive(Default)]
+struct EdgeHasher(u64);
+
+impl std::hash::Hasher for EdgeHasher {
+    fn finish(&self) -> u64 {
+        self.0 ^ (self.0 >> 32)
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+    }
+
+    fn write_u32(&mut self, x: u32) {
+        self.0 = (self.0.rotate_left(32) ^ x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+}
+
+type EdgeMap = HashMap<(u32, u32), EdgeFaces, std::hash::BuildHasherDefault<EdgeHasher>>;
+
 /// Splits every edge with at least one end where `eligible` (by label) longer than
 /// `max_length`, until none is left; new vertices take the label of their edge's ends
 /// (the non-zero one if they differ, the smaller if both are non-zero). Returns the
@@ -30,7 +83,7 @@ pub fn refine(
     max_length: f64,
     limit: usize,
 ) -> Parents {
-    let mut edge_faces: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    let mut edge_faces = EdgeMap::with_capacity_and_hasher(faces.len() * 2, Default::default());
     for (f, face) in faces.iter().enumerate() {
         for k in 0..3 {
             edge_faces
@@ -61,13 +114,12 @@ pub fn refine(
         if parents.len() >= limit {
             break;
         }
-        let Some(on_edge) = edge_faces.get(&(a, b)) else {
+        let Some(&on_edge) = edge_faces.get(&(a, b)) else {
             continue;
         };
-        if on_edge.len() > 2 {
+        if on_edge.count > 2 {
             continue;
         }
-        let on_edge = on_edge.clone();
         edge_faces.remove(&(a, b));
         let m = positions.len() as u32;
         positions.push(nalgebra_mid(&positions[a as usize], &positions[b as usize]));
@@ -78,7 +130,7 @@ pub fn refine(
         });
         parents.push([a, b]);
         let mut touched = vec![(a, m), (m, b)];
-        for f in on_edge {
+        for &f in on_edge.as_slice() {
             let face = faces[f as usize];
             // Rotate so that the split edge is face[0] -> face[1].
             let k = (0..3)
@@ -90,13 +142,11 @@ pub fn refine(
             faces.push([m, q, c]);
             edge_faces.entry(key(p, m)).or_default().push(f);
             edge_faces.entry(key(m, q)).or_default().push(g);
-            edge_faces.entry(key(m, c)).or_default().extend([f, g]);
+            let across = edge_faces.entry(key(m, c)).or_default();
+            across.push(f);
+            across.push(g);
             if let Some(list) = edge_faces.get_mut(&key(q, c)) {
-                for x in list.iter_mut() {
-                    if *x == f {
-                        *x = g;
-                    }
-                }
+                list.replace(f, g);
             }
             touched.push((m, c));
         }

@@ -45,10 +45,14 @@ use fresco_core::nalgebra::{DMatrix, Point3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
 use crate::GeotexError;
-use crate::sparse::SymmetricMatrix;
+use crate::sparse::{Pattern, SymmetricMatrix};
 
 /// Dimension of the PCA projection the nearest-neighbour search runs in.
 const PCA_DIMENSIONS: usize = 8;
+
+/// Chunks the least-squares right-hand side is summed over in parallel (fixed, so that
+/// the sum's order does not depend on the thread count).
+const RHS_CHUNKS: usize = 8;
 
 /// Settings of the re-synthesis.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -150,6 +154,9 @@ pub(crate) struct Surface<'a> {
     /// The face across each face's edge opposite corner `k` (`u32::MAX` on a boundary or
     /// a non-manifold edge): what the template walk steps through.
     across: Vec<[u32; 3]>,
+    /// Unit normal of each face (zero when degenerate): the horizon test of the template
+    /// walks, which visit each face many times.
+    face_normals: Vec<[f32; 3]>,
     mean_edge: f64,
 }
 
@@ -187,6 +194,14 @@ impl<'a> Surface<'a> {
             offsets,
             incident,
             across: face_adjacency(faces),
+            face_normals: faces
+                .par_iter()
+                .map(|f| {
+                    let [a, b, c] = f.map(|v| positions[v as usize]);
+                    let n = (b - a).cross(&(c - a)).try_normalize(0.0);
+                    n.map_or([0.0; 3], |n| [n.x as f32, n.y as f32, n.z as f32])
+                })
+                .collect(),
             mean_edge: edge_sum / (3 * faces.len()).max(1) as f64,
         }
     }
@@ -316,9 +331,8 @@ fn sample_template(
 /// A face turned more than about 80 degrees from the template's normal `n` is beyond the
 /// horizon of the tangent plane (see [`unfold_template`]).
 fn faces_the_template(surface: &Surface, f: u32, n: &Vector3<f64>) -> bool {
-    let [a, b, c] = surface.faces[f as usize].map(|v| surface.positions[v as usize]);
-    let normal = (b - a).cross(&(c - a));
-    normal.dot(n) > 0.17 * normal.norm()
+    let m = surface.face_normals[f as usize];
+    m[0] as f64 * n.x + m[1] as f64 * n.y + m[2] as f64 * n.z > 0.17
 }
 
 /// Fills `out` by walking (see [`sample_template`]); false when a grid point could not be
@@ -607,6 +621,138 @@ pub struct RegionSynthesis {
     pub relative_energy: f64,
 }
 
+/// The output side of one level: its templates, their neighbours and the factorisable
+/// normal matrix of the least-squares step.
+struct OutputLevel {
+    centres: Vec<u32>,
+    templates: Vec<Vec<Sample>>,
+    /// Origin and frame of each template.
+    out_origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)>,
+    centre_points: Vec<Point3<f64>>,
+    /// Neighbouring centres of each centre.
+    neighbours: Vec<Vec<u32>>,
+    matrix: SymmetricMatrix,
+    /// Weights of the constraint and of the damping (module docs).
+    mu: f64,
+    eps: f64,
+}
+
+/// Builds the output side of the level of spacing `s` (see [`synthesise_region`]).
+#[allow(clippy::too_many_arguments)]
+fn output_level(
+    target: &Output,
+    unknown: &[u32],
+    constraint: &[f64],
+    axes: [usize; 2],
+    m: usize,
+    s: f64,
+    level: usize,
+    cfg: &SynthesisConfig,
+) -> Result<OutputLevel, GeotexError> {
+    let nu = target.members.len();
+    let centres = spread(
+        target.surface.positions,
+        &target.members,
+        0.5 * m as f64 * s,
+    );
+    let templates: Vec<Vec<Sample>> = centres
+        .par_iter()
+        .map_init(Scratch::default, |scratch, &c| {
+            sample_template(
+                target.surface,
+                c,
+                shift(cfg.seed, level, c),
+                axes,
+                m,
+                s,
+                scratch,
+            )
+        })
+        .collect();
+    // Neighbouring centres (for coherent candidates, Ashikhmin 2001 / Tong et al.
+    // 2002's k-coherence): a neighbour q matched to input neighbourhood e suggests, for
+    // centre p, the input neighbourhood at e's place shifted by p − q in the frames.
+    let out_origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)> = centres
+        .iter()
+        .map(|&c| template_origin(target.surface, c, shift(cfg.seed, level, c), axes, s))
+        .collect();
+    let centre_points: Vec<Point3<f64>> = out_origins.iter().map(|o| o.0).collect();
+    let centre_index = PointIndex3::build(&centre_points).map_err(GeotexError::Index)?;
+    let neighbours: Vec<Vec<u32>> = centre_points
+        .par_iter()
+        .map(|p| {
+            centre_index
+                .k_nearest_within(p, 9, 2.0 * m as f64 * s)
+                .into_iter()
+                .map(|n| n.index)
+                .filter(|&q| centre_points[q as usize] != *p)
+                .collect()
+        })
+        .collect();
+
+    // The normal matrix: Σ_p W_pᵀ W_p over the unknowns, accumulated per face.
+    let faces = target.surface.faces;
+    let mut per_face = vec![[0.0f64; 6]; faces.len()];
+    for t in &templates {
+        for smp in t.iter().filter(|s| s.face != u32::MAX) {
+            let w = smp.weights();
+            let acc = &mut per_face[smp.face as usize];
+            acc[0] += w[0] * w[0];
+            acc[1] += w[1] * w[1];
+            acc[2] += w[2] * w[2];
+            acc[3] += w[0] * w[1];
+            acc[4] += w[0] * w[2];
+            acc[5] += w[1] * w[2];
+        }
+    }
+    let mut diagonal = vec![0.0; nu];
+    let mut matrix = SymmetricMatrix::new(nu);
+    // Every face adds its entries, zero or not: the pattern is then the same at every
+    // level and its symbolic factorisation is reused.
+    for (f, acc) in per_face.iter().enumerate() {
+        let ids = faces[f].map(|v| unknown[v as usize]);
+        let pairs = [
+            (0, 0, 0),
+            (1, 1, 1),
+            (2, 2, 2),
+            (0, 1, 3),
+            (0, 2, 4),
+            (1, 2, 5),
+        ];
+        for (a, b, k) in pairs {
+            let (ia, ib) = (ids[a], ids[b]);
+            if ia == u32::MAX || ib == u32::MAX {
+                continue;
+            }
+            matrix.add(ia as usize, ib as usize, acc[k]);
+            if a == b {
+                diagonal[ia as usize] += acc[k];
+            }
+        }
+    }
+    let covered: Vec<f64> = diagonal.iter().copied().filter(|&x| x > 0.0).collect();
+    let mean_weight = if covered.is_empty() {
+        1.0
+    } else {
+        covered.iter().sum::<f64>() / covered.len() as f64
+    };
+    let mu = cfg.constraint_weight * mean_weight;
+    let eps = cfg.damping * mean_weight;
+    for (k, c) in constraint.iter().enumerate() {
+        matrix.add(k, k, mu * c + eps);
+    }
+    Ok(OutputLevel {
+        centres,
+        templates,
+        out_origins,
+        centre_points,
+        neighbours,
+        matrix,
+        mu,
+        eps,
+    })
+}
+
 /// Input neighbourhoods of one level: values, PCA projection and index.
 struct Exemplars {
     dim: usize,
@@ -812,14 +958,19 @@ fn exemplars(
 /// `(D + σ² K) y = D t`, `K` the graph Laplacian with weights `1/|e|`, `D_i` half the sum
 /// of vertex `i`'s edge lengths (on a regular mesh this is `y − (σ²/2) Δy = t`, a blur of
 /// standard deviation about `σ`).
-fn blur(surface: &Surface, field: &[f64], sigma: f64) -> Result<Vec<f64>, GeotexError> {
+fn blur(
+    surface: &Surface,
+    field: &[f64],
+    sigma: f64,
+    pattern: &mut Option<Pattern>,
+) -> Result<Vec<f64>, GeotexError> {
     let n = surface.positions.len();
     let mut edges: Vec<(u32, u32)> = surface
         .faces
         .iter()
         .flat_map(|f| (0..3).map(move |k| (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]))))
         .collect();
-    edges.sort_unstable();
+    edges.par_sort_unstable();
     edges.dedup();
     let mut mass = vec![0.0; n];
     let mut matrix = SymmetricMatrix::new(n);
@@ -844,7 +995,7 @@ fn blur(surface: &Surface, field: &[f64], sigma: f64) -> Result<Vec<f64>, Geotex
         matrix.add(v, v, m + diagonal[v]);
         rhs[v] = m * field[v];
     }
-    let factor = matrix.factor("texture synthesis (low-pass)")?;
+    let factor = matrix.factor_reusing("texture synthesis (low-pass)", pattern)?;
     factor.solve(&mut rhs, 1)?;
     Ok(rhs)
 }
@@ -963,123 +1114,68 @@ pub(crate) fn synthesise_region(
         .collect();
 
     let mut final_energy = 0.0;
+    let (mut pattern, mut blur_pattern) = (None, None);
     for level in 0..cfg.levels {
         let s = d * (1u64 << (cfg.levels - 1 - level)) as f64;
-        // Coarse levels see the example low-passed to their sampling (a pyramid level of
-        // Kwatra's multiresolution synthesis): sampled raw, a thread finer than two
-        // template steps would alias into a wrong, coarser pattern.
-        let blurred;
-        let field = if s > d {
-            blurred = blur(example.surface, example.displacement, 0.5 * s)?;
-            &blurred
-        } else {
-            example.displacement
-        };
-        let Some(ex) = exemplars(example, field, &in_example, axes, m, s, cfg, level) else {
+        // The input side of a level (low-pass filter, exemplars) and its output side
+        // (templates, normal matrix) do not depend on each other: they are built side by
+        // side, so that the sequential parts of each (the filter's factorisation, the
+        // matrix assembly) overlap the other's parallel work.
+        let (input, output) = rayon::join(
+            || -> Result<Option<Exemplars>, GeotexError> {
+                // Coarse levels see the example low-passed to their sampling (a pyramid
+                // level of Kwatra's multiresolution synthesis): sampled raw, a thread finer
+                // than two template steps would alias into a wrong, coarser pattern.
+                let blurred;
+                let field = if s > d {
+                    blurred = blur(
+                        example.surface,
+                        example.displacement,
+                        0.5 * s,
+                        &mut blur_pattern,
+                    )?;
+                    &blurred
+                } else {
+                    example.displacement
+                };
+                Ok(exemplars(
+                    example,
+                    field,
+                    &in_example,
+                    axes,
+                    m,
+                    s,
+                    cfg,
+                    level,
+                ))
+            },
+            || output_level(target, &unknown, &constraint, axes, m, s, level, cfg),
+        );
+        let Some(ex) = input? else {
             // Too few complete input neighbourhoods at this size: skip the level.
             report.exemplars.push(0);
             report.centres.push(0);
             report.iterations.push(0);
             continue;
         };
+        let OutputLevel {
+            centres,
+            templates,
+            out_origins,
+            centre_points,
+            neighbours,
+            matrix,
+            mu,
+            eps,
+        } = output?;
         report.exemplars.push(ex.values.len() / dim);
-        let centres = spread(
-            target.surface.positions,
-            &target.members,
-            0.5 * m as f64 * s,
-        );
-        let templates: Vec<Vec<Sample>> = centres
-            .par_iter()
-            .map_init(Scratch::default, |scratch, &c| {
-                sample_template(
-                    target.surface,
-                    c,
-                    shift(cfg.seed, level, c),
-                    axes,
-                    m,
-                    s,
-                    scratch,
-                )
-            })
-            .collect();
         report.centres.push(centres.len());
-        // Neighbouring centres (for coherent candidates, Ashikhmin 2001 / Tong et al.
-        // 2002's k-coherence): a neighbour q matched to input neighbourhood e suggests, for
-        // centre p, the input neighbourhood at e's place shifted by p − q in the frames.
-        let out_origins: Vec<(Point3<f64>, Vector3<f64>, Vector3<f64>)> = centres
-            .iter()
-            .map(|&c| template_origin(target.surface, c, shift(cfg.seed, level, c), axes, s))
-            .collect();
-        let centre_points: Vec<Point3<f64>> = out_origins.iter().map(|o| o.0).collect();
-        let centre_index = PointIndex3::build(&centre_points).map_err(GeotexError::Index)?;
-        let neighbours: Vec<Vec<u32>> = centre_points
-            .par_iter()
-            .map(|p| {
-                centre_index
-                    .k_nearest_within(p, 9, 2.0 * m as f64 * s)
-                    .into_iter()
-                    .map(|n| n.index)
-                    .filter(|&q| centre_points[q as usize] != *p)
-                    .collect()
-            })
-            .collect();
-
-        // The normal matrix: Σ_p W_pᵀ W_p over the unknowns, accumulated per face.
         let faces = target.surface.faces;
-        let mut per_face = vec![[0.0f64; 6]; faces.len()];
-        for t in &templates {
-            for smp in t.iter().filter(|s| s.face != u32::MAX) {
-                let w = smp.weights();
-                let acc = &mut per_face[smp.face as usize];
-                acc[0] += w[0] * w[0];
-                acc[1] += w[1] * w[1];
-                acc[2] += w[2] * w[2];
-                acc[3] += w[0] * w[1];
-                acc[4] += w[0] * w[2];
-                acc[5] += w[1] * w[2];
-            }
-        }
-        let mut diagonal = vec![0.0; nu];
-        let mut matrix = SymmetricMatrix::new(nu);
-        for (f, acc) in per_face.iter().enumerate() {
-            if acc[0] + acc[1] + acc[2] == 0.0 {
-                continue;
-            }
-            let ids = faces[f].map(|v| unknown[v as usize]);
-            let pairs = [
-                (0, 0, 0),
-                (1, 1, 1),
-                (2, 2, 2),
-                (0, 1, 3),
-                (0, 2, 4),
-                (1, 2, 5),
-            ];
-            for (a, b, k) in pairs {
-                let (ia, ib) = (ids[a], ids[b]);
-                if ia == u32::MAX || ib == u32::MAX {
-                    continue;
-                }
-                matrix.add(ia as usize, ib as usize, acc[k]);
-                if a == b {
-                    diagonal[ia as usize] += acc[k];
-                }
-            }
-        }
-        let covered: Vec<f64> = diagonal.iter().copied().filter(|&x| x > 0.0).collect();
-        let mean_weight = if covered.is_empty() {
-            1.0
-        } else {
-            covered.iter().sum::<f64>() / covered.len() as f64
-        };
-        let mu = cfg.constraint_weight * mean_weight;
-        let eps = cfg.damping * mean_weight;
-        for (k, c) in constraint.iter().enumerate() {
-            matrix.add(k, k, mu * c + eps);
-        }
-        let factor = matrix.factor("texture synthesis")?;
 
         let mut matches: Vec<u32> = vec![u32::MAX; templates.len()];
         let mut iterations = 0;
+        let mut matrix = Some(matrix);
+        let mut factor = None;
         for _ in 0..cfg.iterations {
             iterations += 1;
             // Matching step: nearest input neighbourhood of every output neighbourhood; the
@@ -1087,34 +1183,49 @@ pub(crate) fn synthesise_region(
             // that the first least-squares step pastes real texture patches at random.
             let random = cfg.random_start && level == 0 && iterations == 1;
             let count = ex.values.len() / dim;
-            let found: Vec<(u32, f64)> = (0..templates.len())
-                .into_par_iter()
-                .map_init(
-                    || (vec![0f32; dim], Vec::new()),
-                    |(buf, coherent), k| {
-                        if random {
-                            let pick = Rng::for_item(cfg.seed, centres[k] as u64).below(count);
-                            return (pick as u32, f64::INFINITY);
-                        }
-                        template_values(target.surface, &templates[k], &x, buf);
-                        coherent.clear();
-                        for &q in &neighbours[k] {
-                            let e = matches[q as usize];
-                            if e == u32::MAX {
-                                continue;
+            let matching = || -> Vec<(u32, f64)> {
+                (0..templates.len())
+                    .into_par_iter()
+                    .map_init(
+                        || (vec![0f32; dim], Vec::new()),
+                        |(buf, coherent), k| {
+                            if random {
+                                let pick = Rng::for_item(cfg.seed, centres[k] as u64).below(count);
+                                return (pick as u32, f64::INFINITY);
                             }
-                            let offset = centre_points[k] - centre_points[q as usize];
-                            let (_, a, b) = out_origins[q as usize];
-                            let (origin, ta, tb) = ex.origins[e as usize];
-                            let place = origin + ta * offset.dot(&a) + tb * offset.dot(&b);
-                            if let Some(n) = ex.places.nearest(&place) {
-                                coherent.push(n.index);
+                            template_values(target.surface, &templates[k], &x, buf);
+                            coherent.clear();
+                            for &q in &neighbours[k] {
+                                let e = matches[q as usize];
+                                if e == u32::MAX {
+                                    continue;
+                                }
+                                let offset = centre_points[k] - centre_points[q as usize];
+                                let (_, a, b) = out_origins[q as usize];
+                                let (origin, ta, tb) = ex.origins[e as usize];
+                                let place = origin + ta * offset.dot(&a) + tb * offset.dot(&b);
+                                if let Some(n) = ex.places.nearest(&place) {
+                                    coherent.push(n.index);
+                                }
                             }
-                        }
-                        ex.best(buf, cfg.candidates, coherent)
-                    },
-                )
-                .collect();
+                            ex.best(buf, cfg.candidates, coherent)
+                        },
+                    )
+                    .collect()
+            };
+            // The level's first matching does not need the factorisation: both run side
+            // by side.
+            let found = match matrix.take() {
+                Some(mx) => {
+                    let (f, found) = rayon::join(
+                        || mx.factor_reusing("texture synthesis", &mut pattern),
+                        matching,
+                    );
+                    factor = Some(f?);
+                    found
+                }
+                None => matching(),
+            };
             let changed = found
                 .iter()
                 .zip(&matches)
@@ -1127,34 +1238,54 @@ pub(crate) fn synthesise_region(
             for (m, f) in matches.iter_mut().zip(&found) {
                 *m = f.0;
             }
-            // Least-squares step.
+            // Least-squares step: Σ_p W_pᵀ z_p, accumulated over a fixed split of the
+            // templates (one partial sum per chunk, added in chunk order: the same bits
+            // whatever the thread count).
+            let chunk = templates.len().div_ceil(RHS_CHUNKS).max(1);
+            let partial: Vec<Vec<f64>> = templates
+                .par_chunks(chunk)
+                .zip(matches.par_chunks(chunk))
+                .map(|(ts, es)| {
+                    let mut rhs = vec![0.0; nu];
+                    for (t, &e) in ts.iter().zip(es) {
+                        let z = ex.row(e as usize);
+                        for (smp, &zk) in t.iter().zip(z) {
+                            if smp.face == u32::MAX {
+                                continue;
+                            }
+                            let face = faces[smp.face as usize];
+                            let w = smp.weights();
+                            let mut target_value = zk as f64;
+                            for c in 0..3 {
+                                if unknown[face[c] as usize] == u32::MAX {
+                                    target_value -= w[c] * x[face[c] as usize];
+                                }
+                            }
+                            for c in 0..3 {
+                                let k = unknown[face[c] as usize];
+                                if k != u32::MAX {
+                                    rhs[k as usize] += w[c] * target_value;
+                                }
+                            }
+                        }
+                    }
+                    rhs
+                })
+                .collect();
             let mut rhs = vec![0.0; nu];
-            for (t, &e) in templates.iter().zip(&matches) {
-                let z = ex.row(e as usize);
-                for (smp, &zk) in t.iter().zip(z) {
-                    if smp.face == u32::MAX {
-                        continue;
-                    }
-                    let face = faces[smp.face as usize];
-                    let w = smp.weights();
-                    let mut target_value = zk as f64;
-                    for c in 0..3 {
-                        if unknown[face[c] as usize] == u32::MAX {
-                            target_value -= w[c] * x[face[c] as usize];
-                        }
-                    }
-                    for c in 0..3 {
-                        let k = unknown[face[c] as usize];
-                        if k != u32::MAX {
-                            rhs[k as usize] += w[c] * target_value;
-                        }
-                    }
+            for p in &partial {
+                for (r, v) in rhs.iter_mut().zip(p) {
+                    *r += v;
                 }
             }
+            drop(partial);
             for (k, &v) in target.members.iter().enumerate() {
                 rhs[k] += mu * constraint[k] * target.carried[v as usize] + eps * x[v as usize];
             }
-            factor.solve(&mut rhs, 1)?;
+            factor
+                .as_ref()
+                .expect("factored beside the first matching")
+                .solve(&mut rhs, 1)?;
             for (k, &v) in target.members.iter().enumerate() {
                 x[v as usize] = rhs[k];
             }

@@ -215,3 +215,41 @@ fn bump_radius_is_kept_by_texture_and_doubled_by_uniform_along_the_stretch() {
         );
     }
 }
+
+#[test]
+fn texture_resize_gives_the_same_bytes_on_one_and_two_threads() {
+    // Every parallel step (templates, matching, the least-squares right-hand side over a
+    // fixed split, the solves per column, the input and output sides of a level built side
+    // by side) must give the same bits whatever the thread count.
+    let model = gt::threaded_cylinder(&gt::ThreadedCylinderConfig::default());
+    let cfg = ResizeConfig {
+        measure: false,
+        ..config(Method::Texture)
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                resize(
+                    &model.mesh,
+                    &Target::Scale([1.0, 1.0, 2.0]),
+                    &cfg,
+                    &NoProgress,
+                )
+                .unwrap()
+            })
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(!one.report.regions.is_empty() && one.report.split_vertices > 0);
+    assert_eq!(one.mesh.faces, two.mesh.faces);
+    assert_eq!(one.labels, two.labels);
+    let bits = |m: &fresco_core::Mesh| -> Vec<[u64; 3]> {
+        m.positions
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .collect()
+    };
+    assert!(bits(&one.mesh) == bits(&two.mesh), "positions differ");
+}
