@@ -317,6 +317,8 @@ fn apply_focal_from_f(
                 .cmp(&a.inliers.len())
                 .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
         });
+        // The strongest pairs only: `estimate_focal` uses at most `max_pairs` of them.
+        pairs.truncate(config.max_pairs);
         let points: Vec<Vec<(Point2<f64>, Point2<f64>)>> = pairs
             .iter()
             .map(|p| {
