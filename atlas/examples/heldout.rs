@@ -4,7 +4,7 @@
 //! ground-truth mesh and cameras. With COLMAP=<model dir> IMAGES=<dir> MESH=<ply> HELD=a,b
 //! a real scene's named photos are held out instead; SEAMS=a.glb,b.glb prints the seam colour
 //! discrepancy of textured GLBs. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
-//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
+//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, OUTWIN, OUTNEAR, OUTPATCH, LEVEL, LEVELSMOOTH, NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
 
 use std::path::Path;
 use std::time::Instant;
@@ -94,6 +94,14 @@ fn main() {
         outlier_sigmas: var("OUTSIG").unwrap_or(TextureConfig::default().outlier_sigmas),
         outlier_min_difference: var("OUTMIN")
             .unwrap_or(TextureConfig::default().outlier_min_difference),
+        outlier_window: var("OUTWIN").map_or(TextureConfig::default().outlier_window, |v| v as u32),
+        outlier_neighbour_deg: var("OUTNEAR")
+            .unwrap_or(TextureConfig::default().outlier_neighbour_deg),
+        outlier_patch_fraction: var("OUTPATCH")
+            .unwrap_or(TextureConfig::default().outlier_patch_fraction),
+        seam_leveling: var("LEVEL").is_some(),
+        seam_leveling_smoothness: var("LEVELSMOOTH")
+            .unwrap_or(TextureConfig::default().seam_leveling_smoothness),
         exposure_gains: var("NOGAIN").is_none(),
         bicubic: var("BILINEAR").is_none(),
         mip_bias: var("MIPBIAS").unwrap_or(TextureConfig::default().mip_bias),

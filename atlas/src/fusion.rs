@@ -14,8 +14,18 @@
 //! mvs-texturing's photo-consistency check, done per texel instead of per face): with at
 //! least three views, a view whose gain-corrected colour is further from the per-channel
 //! median than `outlier_sigmas` robust standard deviations (1.4826 MAD of the views'
-//! distances) and than `outlier_min_difference` is invalid there; the rejection is dilated by
-//! three texels so that the fringe of a highlight goes with it.
+//! distances) and than `outlier_min_difference` is an outlier there, unless the views
+//! disagree for geometric reasons, which a wrong surface (merged columns, a skin across a
+//! gap) causes everywhere on a real capture:
+//! - misregistration: the colour lies within the range the other views show within
+//!   `outlier_window` texels (median over those views), as an edge shifted by a little;
+//! - a near view agrees: a view seeing the face from within `outlier_neighbour_deg`
+//!   shows the same (a wrong surface shifts what nearby views see alike);
+//! - no patch: fewer than `outlier_patch_fraction` of the view's texels within two texels
+//!   are rejected and none such is near (a wrong surface makes views disagree along thin
+//!   lines, a highlight or occluder is a patch).
+//!
+//! What remains is dilated by three texels so that the fringe of a highlight goes with it.
 //!
 //! After the cuts, each texel is blended from several views (on by default; fresco's
 //! addition, after the per-texel averaging of MeshLab and of the per-vertex baseline, which
@@ -45,12 +55,15 @@ pub(crate) struct FusedChart {
     pub outlier_texels: usize,
 }
 
-/// Fuses the views `texels` (already sampled over `grid`) with the gains `gains`.
+/// Fuses the views `texels` (already sampled over `grid`) with the gains `gains`;
+/// `view_dirs[local * texels.len() + k]` is the unit direction from the chart's local face
+/// `local` to the camera of `texels[k]`.
 pub(crate) fn fuse_chart(
     grid: &ChartGrid,
     mut texels: Vec<ViewTexels>,
     set: &ViewSet,
     gains: &[[f32; 3]],
+    view_dirs: &[[f32; 3]],
     config: &TextureConfig,
 ) -> FusedChart {
     let n = grid.texel_face.len();
@@ -79,7 +92,7 @@ pub(crate) fn fuse_chart(
         }
     }
     let outlier_texels = if config.outlier_rejection {
-        reject_outliers(grid, &mut texels, config)
+        reject_outliers(grid, &mut texels, view_dirs, config)
     } else {
         0
     };
@@ -282,17 +295,49 @@ fn boundary_distance(grid: &ChartGrid, valid: &[bool], radius: f32) -> Vec<f32> 
 }
 
 /// Per-texel photo-consistency test (module documentation); returns the number of
-/// (texel, view) pairs rejected.
-fn reject_outliers(grid: &ChartGrid, texels: &mut [ViewTexels], config: &TextureConfig) -> usize {
+/// (texel, view) pairs rejected. `view_dirs[local * views + k]` is the unit direction from
+/// local face `local` to the camera of chart view `k`.
+fn reject_outliers(
+    grid: &ChartGrid,
+    texels: &mut [ViewTexels],
+    view_dirs: &[[f32; 3]],
+    config: &TextureConfig,
+) -> usize {
     let n = grid.texel_face.len();
     let nk = texels.len();
     if nk < 3 {
         return 0;
     }
+    let r = config.outlier_window as usize;
+    let cos_near = (config.outlier_neighbour_deg > 0.0)
+        .then(|| config.outlier_neighbour_deg.to_radians().cos() as f32);
     let mut reject = vec![false; n * nk];
     let mut vals: Vec<f32> = Vec::with_capacity(nk);
     let mut dist: Vec<f32> = Vec::with_capacity(nk);
     let mut members: Vec<usize> = Vec::with_capacity(nk);
+    let mut others: Vec<f32> = Vec::with_capacity(nk);
+    // How far colour `c` lies outside the range view `m` shows around texel `i`.
+    let outside = |m: &ViewTexels, i: usize, c: [f32; 3]| -> f32 {
+        if r == 0 {
+            return max_channel_difference(m.colour[i], c);
+        }
+        let (x, y) = (i % grid.width, i / grid.width);
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for yy in y.saturating_sub(r)..(y + r + 1).min(grid.height) {
+            for xx in x.saturating_sub(r)..(x + r + 1).min(grid.width) {
+                let j = yy * grid.width + xx;
+                if m.valid[j] {
+                    for ch in 0..3 {
+                        lo[ch] = lo[ch].min(m.colour[j][ch]);
+                        hi[ch] = hi[ch].max(m.colour[j][ch]);
+                    }
+                }
+            }
+        }
+        (0..3)
+            .map(|ch| (lo[ch] - c[ch]).max(c[ch] - hi[ch]).max(0.0))
+            .fold(0f32, f32::max)
+    };
     for i in 0..n {
         if grid.texel_face[i] == NONE {
             continue;
@@ -309,21 +354,95 @@ fn reject_outliers(grid: &ChartGrid, texels: &mut [ViewTexels], config: &Texture
             *m = median_of(&mut vals);
         }
         dist.clear();
-        dist.extend(members.iter().map(|&k| {
-            let col = texels[k].colour[i];
-            (0..3)
-                .map(|c| (col[c] - median[c]).abs())
-                .fold(0f32, f32::max)
-        }));
+        dist.extend(
+            members
+                .iter()
+                .map(|&k| max_channel_difference(texels[k].colour[i], median)),
+        );
         let mut sorted = dist.clone();
         let mad = median_of(&mut sorted);
         let limit =
             (config.outlier_sigmas as f32 * 1.4826 * mad).max(config.outlier_min_difference as f32);
+        let local = grid.texel_face[i] as usize;
         for (j, &k) in members.iter().enumerate() {
-            if dist[j] > limit {
-                reject[i * nk + k] = true;
+            if dist[j] <= limit {
+                continue;
+            }
+            let c = texels[k].colour[i];
+            // Misregistration: within the range most other views show nearby.
+            if r > 0 {
+                others.clear();
+                others.extend(
+                    members
+                        .iter()
+                        .filter(|&&m| m != k)
+                        .map(|&m| outside(&texels[m], i, c)),
+                );
+                if median_of(&mut others) <= limit {
+                    continue;
+                }
+            }
+            // A wrong surface: a view from nearly the same direction sees the same.
+            if let Some(cos_near) = cos_near {
+                let dk = view_dirs[local * nk + k];
+                let agrees = members.iter().any(|&m| {
+                    let dm = view_dirs[local * nk + m];
+                    m != k
+                        && dk[0] * dm[0] + dk[1] * dm[1] + dk[2] * dm[2] >= cos_near
+                        && outside(&texels[m], i, c).min(outside(
+                            &texels[k],
+                            i,
+                            texels[m].colour[i],
+                        )) <= limit
+                });
+                if agrees {
+                    continue;
+                }
+            }
+            reject[i * nk + k] = true;
+        }
+    }
+    // Only patches of rejection count (a highlight, an occluder), not thin lines.
+    if config.outlier_patch_fraction > 0.0 {
+        let fraction = config.outlier_patch_fraction as f32;
+        let mut kept = vec![false; n * nk];
+        for (k, t) in texels.iter().enumerate() {
+            for i in 0..n {
+                if !reject[i * nk + k] {
+                    continue;
+                }
+                let (x, y) = (i % grid.width, i / grid.width);
+                let (mut rejected, mut valid) = (0u32, 0u32);
+                for yy in y.saturating_sub(PATCH_RADIUS)..(y + PATCH_RADIUS + 1).min(grid.height) {
+                    for xx in x.saturating_sub(PATCH_RADIUS)..(x + PATCH_RADIUS + 1).min(grid.width)
+                    {
+                        let j = yy * grid.width + xx;
+                        if t.valid[j] {
+                            valid += 1;
+                            rejected += reject[j * nk + k] as u32;
+                        }
+                    }
+                }
+                kept[i * nk + k] = rejected as f32 >= fraction * valid as f32;
             }
         }
+        // The rejections near a patch's core stay (its fringe), the others go.
+        let mut near_core = vec![false; n * nk];
+        for k in 0..nk {
+            for i in 0..n {
+                if !reject[i * nk + k] {
+                    continue;
+                }
+                let (x, y) = (i % grid.width, i / grid.width);
+                near_core[i * nk + k] = (y.saturating_sub(PATCH_RADIUS)
+                    ..(y + PATCH_RADIUS + 1).min(grid.height))
+                    .any(|yy| {
+                        (x.saturating_sub(PATCH_RADIUS)..(x + PATCH_RADIUS + 1).min(grid.width))
+                            .any(|xx| kept[(yy * grid.width + xx) * nk + k])
+                    });
+            }
+        }
+        reject = near_core;
     }
     let mut count = 0;
     for (k, t) in texels.iter_mut().enumerate() {
@@ -346,6 +465,14 @@ fn reject_outliers(grid: &ChartGrid, texels: &mut [ViewTexels], config: &Texture
         }
     }
     count
+}
+
+/// Radius of the window over which a rejection must be a patch
+/// ([`TextureConfig::outlier_patch_fraction`]), texels.
+const PATCH_RADIUS: usize = 2;
+
+fn max_channel_difference(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max)
 }
 
 /// Texels by which a rejection spreads: the photo's lookup (a 4x4 bicubic kernel at a mip

@@ -20,6 +20,7 @@ mod exposure;
 pub mod fill;
 mod fusion;
 pub mod graph_cut;
+mod leveling;
 pub mod max_flow;
 mod seams;
 mod texture;

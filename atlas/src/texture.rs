@@ -9,7 +9,9 @@
 //! 5. Per chart, in parallel: texels ([`crate::transfer::rasterise_chart`]), each candidate
 //!    view's colours ([`crate::transfer::sample_view`]), greedy graph-cut fusion
 //!    ([`crate::fusion::fuse_chart`]).
-//! 6. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
+//! 6. Seam leveling ([`crate::leveling`]): per chart and vertex colour offsets that close
+//!    the colour steps across chart boundaries, added to the fused texels.
+//! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
 //!
 //! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
 
@@ -61,6 +63,7 @@ pub struct Timings {
     pub unwrap: f64,
     pub gains: f64,
     pub fusion: f64,
+    pub leveling: f64,
     pub fill: f64,
     pub write: f64,
 }
@@ -170,7 +173,7 @@ pub fn texture(
     let normals = mesh.face_normals();
     let uvs = mesh.corner_uvs.as_ref().expect("ensure_uvs set them");
     progress.begin("fusing charts", mesh.faces.len() as u64);
-    let fused: Vec<ChartOutput> = charts
+    let mut fused: Vec<ChartOutput> = charts
         .par_iter()
         .map(|(atlas, faces)| {
             let out = fuse_one_chart(
@@ -185,43 +188,59 @@ pub fn texture(
     summary.seconds.fusion = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    progress.begin("filling holes and gutters", atlases as u64);
     let s = size as usize;
+    if config.seam_leveling && !fused.is_empty() {
+        progress.begin("levelling seams", 1);
+        let filled: Vec<Vec<[f32; 3]>> = (0..atlases as u32)
+            .map(|a| assemble(&fused, a, s).0)
+            .collect();
+        let mut chart_of = vec![0u32; mesh.faces.len()];
+        for (c, (_, faces)) in charts.iter().enumerate() {
+            for &f in faces {
+                chart_of[f as usize] = c as u32;
+            }
+        }
+        let atlas_of = |f: usize| mesh.face_textures.as_ref().map_or(0, |t| t[f] as usize);
+        let offsets = crate::leveling::level_seams(
+            &mesh,
+            uvs,
+            &chart_of,
+            atlas_of,
+            size,
+            |a, u, v| bilinear(&filled[a.min(filled.len() - 1)], s, u, v),
+            config.seam_leveling_smoothness as f32,
+        );
+        fused
+            .par_iter_mut()
+            .zip(&charts)
+            .enumerate()
+            .for_each(|(c, (out, (_, faces)))| {
+                let grid = rasterise_chart(uvs, faces.clone(), s);
+                for i in 0..out.colour.len() {
+                    let state = out.state[i];
+                    if state != STATE_PHOTO && state != STATE_BORDER_PHOTO {
+                        continue;
+                    }
+                    let local = grid.texel_face[i] as usize;
+                    let g = offsets.at(&mesh, c as u32, grid.faces[local], &grid.bary[i]);
+                    for (c, g) in out.colour[i].iter_mut().zip(g) {
+                        *c = (*c + g).clamp(0.0, 1.0);
+                    }
+                }
+            });
+        progress.end();
+    }
+    summary.seconds.leveling = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    progress.begin("filling holes and gutters", atlases as u64);
     let mut textures = Vec::with_capacity(atlases);
     let mut masks = Vec::with_capacity(atlases);
     let (mut interior, mut covered) = (0usize, 0usize);
     for a in 0..atlases as u32 {
-        let mut colour = vec![[0f32; 3]; s * s];
-        let mut weight = vec![0f32; s * s];
-        let mut mask = vec![0u8; s * s];
-        // Interior texels first, then the extrapolated borders where nothing else is.
-        for pass_interior in [true, false] {
-            for c in fused.iter().filter(|c| c.atlas == a) {
-                for y in 0..c.height {
-                    for x in 0..c.width {
-                        let i = y * c.width + x;
-                        let state = c.state[i];
-                        let is_interior = state == STATE_PHOTO || state == STATE_HOLE;
-                        if state == STATE_NONE || is_interior != pass_interior {
-                            continue;
-                        }
-                        let k = (c.y0 + y) * s + c.x0 + x;
-                        if pass_interior {
-                            mask[k] = if state == STATE_PHOTO { 255 } else { 128 };
-                        } else if mask[k] != 0 || weight[k] > 0.0 {
-                            continue;
-                        }
-                        if state == STATE_PHOTO || state == STATE_BORDER_PHOTO {
-                            colour[k] = c.colour[i];
-                            weight[k] = 1.0;
-                        }
-                    }
-                }
-            }
-        }
+        let (colour, mask) = assemble(&fused, a, s);
         interior += mask.iter().filter(|&&m| m != 0).count();
         covered += mask.iter().filter(|&&m| m == 255).count();
-        push_pull(&mut colour, &weight, s, s);
         let rgb: Vec<u8> = colour
             .iter()
             .flat_map(|c| c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8))
@@ -239,6 +258,57 @@ pub fn texture(
     summary.seams = crate::seam_discrepancy(&mesh, &textures).unwrap_or_default();
     summary.seconds.fill = t.elapsed().as_secs_f64();
     Ok((TexturedModel { mesh, textures }, masks, summary))
+}
+
+/// Atlas `a` of `s` x `s` texels from the fused charts: colours with holes and gutters
+/// filled by push-pull, and the coverage mask (255 photo colour, 128 filled inside a chart,
+/// 0 gutter).
+fn assemble(fused: &[ChartOutput], a: u32, s: usize) -> (Vec<[f32; 3]>, Vec<u8>) {
+    let mut colour = vec![[0f32; 3]; s * s];
+    let mut weight = vec![0f32; s * s];
+    let mut mask = vec![0u8; s * s];
+    // Interior texels first, then the extrapolated borders where nothing else is.
+    for pass_interior in [true, false] {
+        for c in fused.iter().filter(|c| c.atlas == a) {
+            for y in 0..c.height {
+                for x in 0..c.width {
+                    let i = y * c.width + x;
+                    let state = c.state[i];
+                    let is_interior = state == STATE_PHOTO || state == STATE_HOLE;
+                    if state == STATE_NONE || is_interior != pass_interior {
+                        continue;
+                    }
+                    let k = (c.y0 + y) * s + c.x0 + x;
+                    if pass_interior {
+                        mask[k] = if state == STATE_PHOTO { 255 } else { 128 };
+                    } else if mask[k] != 0 || weight[k] > 0.0 {
+                        continue;
+                    }
+                    if state == STATE_PHOTO || state == STATE_BORDER_PHOTO {
+                        colour[k] = c.colour[i];
+                        weight[k] = 1.0;
+                    }
+                }
+            }
+        }
+    }
+    push_pull(&mut colour, &weight, s, s);
+    (colour, mask)
+}
+
+/// The renderer's bilinear lookup (`fresco_core::raster::sample_bilinear`) on a float atlas
+/// of `s` x `s` texels at UV (u, v).
+fn bilinear(atlas: &[[f32; 3]], s: usize, u: f64, v: f64) -> [f32; 3] {
+    let x = (u * s as f64 - 0.5).clamp(0.0, (s - 1) as f64);
+    let y = (v * s as f64 - 0.5).clamp(0.0, (s - 1) as f64);
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(s - 1), (y0 + 1).min(s - 1));
+    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let t = |x: usize, y: usize| atlas[y * s + x];
+    let (a, b, c, d) = (t(x0, y0), t(x1, y0), t(x0, y1), t(x1, y1));
+    [0, 1, 2].map(|ch| {
+        (a[ch] * (1.0 - fx) + b[ch] * fx) * (1.0 - fy) + (c[ch] * (1.0 - fx) + d[ch] * fx) * fy
+    })
 }
 
 /// Texel states of a fused chart.
@@ -280,7 +350,19 @@ fn fuse_one_chart(
         .map(|&v| sample_view(mesh, normals, &grid, set, v, config))
         .filter(|t| t.valid.iter().any(|&ok| ok))
         .collect();
-    let fused = crate::fusion::fuse_chart(&grid, texels, set, gains, config);
+    let view_dirs: Vec<[f32; 3]> = faces
+        .iter()
+        .flat_map(|&f| {
+            let [a, b, c] = mesh.triangle(f as usize);
+            let centroid = (a.coords + b.coords + c.coords) / 3.0;
+            texels.iter().map(move |t| {
+                let d = set.views[t.view].centre.coords - centroid;
+                let d = d / d.norm().max(1e-300);
+                [d.x as f32, d.y as f32, d.z as f32]
+            })
+        })
+        .collect();
+    let fused = crate::fusion::fuse_chart(&grid, texels, set, gains, &view_dirs, config);
     let state = (0..grid.texel_face.len())
         .map(|i| {
             let has = fused.label[i] != u16::MAX;

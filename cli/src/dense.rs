@@ -42,6 +42,10 @@ pub struct DenseArgs {
     /// PatchMatch iterations.
     #[arg(long, default_value_t = DenseConfig::default().patch_match.iterations)]
     pub iterations: usize,
+    /// PatchMatch sweeps at full resolution in the first pass (1: about a quarter less time,
+    /// slightly less complete).
+    #[arg(long, default_value_t = DenseConfig::default().patch_match.finest_iterations)]
+    pub finest_iterations: usize,
     /// Fewest agreeing views for a fused point.
     #[arg(long, default_value_t = DenseConfig::default().fusion.min_views)]
     pub min_views: usize,
@@ -56,7 +60,7 @@ pub struct DenseArgs {
     pub no_depth_pngs: bool,
     /// The draft preset (DenseConfig::draft: images at most 320 px, fewer sweeps): a first
     /// look in seconds.
-    #[arg(long, conflicts_with_all = ["max_image_size", "iterations"])]
+    #[arg(long, conflicts_with_all = ["max_image_size", "iterations", "finest_iterations"])]
     pub draft: bool,
     /// Skip the second PatchMatch pass (geometric consistency): faster, less complete.
     #[arg(long)]
@@ -127,6 +131,7 @@ pub fn run(args: DenseArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     if !args.draft {
         config.max_image_size = args.max_image_size;
         config.patch_match.iterations = args.iterations;
+        config.patch_match.finest_iterations = args.finest_iterations;
     }
     config.view_selection.max_sources = args.max_sources;
     config.fusion.min_views = args.min_views;

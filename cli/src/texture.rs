@@ -53,6 +53,10 @@ pub struct TextureArgs {
     /// Do not drop photometric outliers (highlights, occluders) before fusing.
     #[arg(long)]
     pub no_outliers: bool,
+    /// Level the colours across chart boundaries after fusion (per chart and vertex offsets
+    /// by least squares): smaller seams, at the risk of spreading a highlight's influence.
+    #[arg(long)]
+    pub level_seams: bool,
     /// Also write model.obj + model.mtl (with the atlas PNGs).
     #[arg(long)]
     pub obj: bool,
@@ -125,6 +129,7 @@ pub fn run(args: TextureArgs, ctx: &crate::Context) -> anyhow::Result<serde_json
         exclude_images: args.exclude.clone(),
         exposure_gains: !args.no_gains,
         outlier_rejection: !args.no_outliers,
+        seam_leveling: args.level_seams,
         write_obj: args.obj,
         ..TextureConfig::default()
     };

@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
 //! [--eval-only] [key=value ...]` (keys: max_image_size, geometric, scales, iterations,
-//! fine_iterations, geometric_iterations, adaptive_views, top_k, max_sources, min_views,
+//! fine_iterations, finest_iterations, geometric_iterations, settled_px, adaptive_views, top_k, max_sources, min_views,
 //! support_plane)
 
 use std::path::PathBuf;
@@ -39,7 +39,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "scales" => pm.scales = v.parse()?,
             "iterations" => pm.iterations = v.parse()?,
             "fine_iterations" => pm.fine_iterations = v.parse()?,
+            "finest_iterations" => pm.finest_iterations = v.parse()?,
             "geometric_iterations" => pm.geometric_iterations = v.parse()?,
+            "settled_px" => pm.settled_px = v.parse()?,
             "adaptive_views" => pm.adaptive_views = v.parse()?,
             "top_k" => pm.top_k = v.parse()?,
             "max_sources" => config.view_selection.max_sources = v.parse()?,
@@ -70,6 +72,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             println!("support plane removed: {plane:?}");
         }
         println!("outside the masks: {}", summary.fusion.outside_masks);
+    }
+    if !dataset.join("mesh.ply").is_file() {
+        // A real photo set (sparse/ and images/ only): nothing to judge against.
+        return Ok(());
     }
     let mesh = read_mesh(dataset.join("mesh.ply"))?;
     let mut reader = PlyReader::open(out.join("fused.ply"))?;

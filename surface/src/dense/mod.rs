@@ -127,6 +127,7 @@ impl DenseConfig {
         pm.scales = 2;
         pm.iterations = 4;
         pm.fine_iterations = 1;
+        pm.finest_iterations = 1;
         pm.geometric_iterations = 1;
         config
     }

@@ -1,0 +1,337 @@
+//! Seam leveling after fusion (after Waechter, Moehrle and Goesele 2014, "Let there be
+//! color!", section 5, global adjustment; here the unknowns are per chart instead of per
+//! view label, since fresco's charts already blend several views inside).
+//!
+//! Every vertex of every chart gets an additive colour offset `g[chart, vertex]`, one per
+//! channel, interpolated over the chart's faces barycentrically. The offsets minimise, by
+//! least squares (conjugate gradients on the normal equations, one system per channel):
+//! - along every seam edge (a mesh edge whose two faces lie in different charts), the colour
+//!   difference between the two sides after the offsets at the edge's middle, where the
+//!   difference before them is the per-channel median over samples one texel apart (robust
+//!   to content misregistered across the seam), clamped to `MAX_STEP`;
+//! - `smoothness` times the difference of the offsets of the two ends of every edge inside a
+//!   chart, so that a correction spreads smoothly over the chart instead of making a step
+//!   of its own next to the seam;
+//! - `REGULARISATION` times each offset, which fixes the level (any constant added to every
+//!   offset of a connected surface leaves the other terms unchanged).
+//!
+//! The colours compared are the fused atlas' with its holes and gutters filled, read with
+//! the renderer's bilinear lookup, so what is levelled is what a viewer shows.
+
+use std::collections::{HashMap, HashSet};
+
+use fresco_core::Mesh;
+use fresco_core::mesh::Uv;
+
+/// Weight of the term pulling every offset to zero (relative to a seam edge's 1).
+const REGULARISATION: f32 = 1e-3;
+/// Samples per seam edge: one per texel along the edge's UV image, at least 2, at most this.
+const MAX_SAMPLES_PER_EDGE: usize = 32;
+/// Largest colour step across a seam edge that leveling closes; a larger one is content that
+/// differs (a wrong surface seen from two sides), not a level, and counts as this much.
+const MAX_STEP: f32 = 0.15;
+/// Conjugate-gradient iterations at most, and the relative residual that stops them.
+const MAX_ITERATIONS: usize = 500;
+const TOLERANCE: f32 = 1e-4;
+
+/// One least-squares row: `sum a[k] x[idx[k]] = rhs` with weight `w` (squared residual
+/// times `w`).
+struct Row {
+    idx: [u32; 4],
+    a: [f32; 4],
+    rhs: [f32; 3],
+    w: f32,
+}
+
+/// Offsets per (chart, vertex): `index[&(chart, vertex)]` into `values`.
+pub(crate) struct Offsets {
+    pub index: HashMap<(u32, u32), u32>,
+    pub values: Vec<[f32; 3]>,
+}
+
+impl Offsets {
+    /// The offset at barycentrics `b` of face `face` (whose chart is `chart`).
+    pub fn at(&self, mesh: &Mesh, chart: u32, face: u32, b: &[f32; 3]) -> [f32; 3] {
+        let tri = mesh.faces[face as usize];
+        let mut out = [0f32; 3];
+        for k in 0..3 {
+            if let Some(&i) = self.index.get(&(chart, tri[k])) {
+                for (ch, o) in out.iter_mut().enumerate() {
+                    *o += b[k] * self.values[i as usize][ch];
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The offsets (module documentation). `chart_of[f]` is face `f`'s chart; `atlas(t, u, v)`
+/// reads atlas `t`'s colour at UV (u, v); `size` is the atlas width in texels.
+pub(crate) fn level_seams(
+    mesh: &Mesh,
+    uvs: &[[Uv; 3]],
+    chart_of: &[u32],
+    atlas_of: impl Fn(usize) -> usize,
+    size: u32,
+    read: impl Fn(usize, f64, f64) -> [f32; 3],
+    smoothness: f32,
+) -> Offsets {
+    let mut index: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut id = |c: u32, v: u32| -> u32 {
+        let n = index.len() as u32;
+        *index.entry((c, v)).or_insert(n)
+    };
+    // Sides of each mesh edge, keyed by the endpoints' positions (split vertices match).
+    let key = |v: u32| {
+        let p = mesh.positions[v as usize];
+        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+    };
+    // (face, corner at the lower key, corner at the higher key)
+    type Side = (usize, usize, usize);
+    let mut edges: HashMap<([u64; 3], [u64; 3]), Vec<Side>> = HashMap::new();
+    for (f, tri) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let (ka, kb) = (key(tri[k]), key(tri[(k + 1) % 3]));
+            if ka == kb {
+                continue;
+            }
+            let (e, side) = if ka < kb {
+                ((ka, kb), (f, k, (k + 1) % 3))
+            } else {
+                ((kb, ka), (f, (k + 1) % 3, k))
+            };
+            edges.entry(e).or_default().push(side);
+        }
+    }
+    let mut keys: Vec<_> = edges.keys().copied().collect();
+    keys.sort_unstable();
+    let mut rows: Vec<Row> = Vec::new();
+    let mut inner: HashSet<(u32, u32, u32)> = HashSet::new();
+    for e in keys {
+        let sides = &edges[&e];
+        // Smoothness inside each chart, once per (chart, edge).
+        for &(f, ka, kb) in sides {
+            let (a, b) = (mesh.faces[f][ka], mesh.faces[f][kb]);
+            let c = chart_of[f];
+            if inner.insert((c, a.min(b), a.max(b))) {
+                rows.push(Row {
+                    idx: [id(c, a), id(c, b), 0, 0],
+                    a: [1.0, -1.0, 0.0, 0.0],
+                    rhs: [0.0; 3],
+                    w: smoothness,
+                });
+            }
+        }
+        if sides.len() != 2 {
+            continue;
+        }
+        let (s, t) = (sides[0], sides[1]);
+        let (cs, ct) = (chart_of[s.0], chart_of[t.0]);
+        if cs == ct {
+            continue;
+        }
+        let uv = |side: Side, k: usize| {
+            let u = uvs[side.0][k];
+            [u[0] as f64, u[1] as f64]
+        };
+        let (s0, s1, t0, t1) = (uv(s, s.1), uv(s, s.2), uv(t, t.1), uv(t, t.2));
+        let len = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]).hypot(b[1] - a[1]) * size as f64;
+        let n = (len(s0, s1).max(len(t0, t1)).ceil() as usize).clamp(2, MAX_SAMPLES_PER_EDGE);
+        let ids = [
+            id(cs, mesh.faces[s.0][s.1]),
+            id(cs, mesh.faces[s.0][s.2]),
+            id(ct, mesh.faces[t.0][t.1]),
+            id(ct, mesh.faces[t.0][t.2]),
+        ];
+        // The edge's difference: the per-channel median over its samples, so that content
+        // misregistered across the seam (a few texels of an edge) does not count, only the
+        // level the two sides are at.
+        let mut diffs: [Vec<f32>; 3] = Default::default();
+        for i in 0..n {
+            let x = (i as f64 + 0.5) / n as f64;
+            let lerp =
+                |a: [f64; 2], b: [f64; 2]| [a[0] + x * (b[0] - a[0]), a[1] + x * (b[1] - a[1])];
+            let (us, ut) = (lerp(s0, s1), lerp(t0, t1));
+            let col_s = read(atlas_of(s.0), us[0], us[1]);
+            let col_t = read(atlas_of(t.0), ut[0], ut[1]);
+            for ch in 0..3 {
+                diffs[ch].push(col_t[ch] - col_s[ch]);
+            }
+        }
+        // (col_s + g_s) - (col_t + g_t) = 0 at the edge's middle.
+        rows.push(Row {
+            idx: ids,
+            a: [0.5, 0.5, -0.5, -0.5],
+            rhs: diffs.map(|mut d| median(&mut d).clamp(-MAX_STEP, MAX_STEP)),
+            w: 1.0,
+        });
+    }
+    let values = solve(&rows, index.len());
+    Offsets { index, values }
+}
+
+fn median(v: &mut [f32]) -> f32 {
+    v.sort_by(f32::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Least squares over `rows` plus [`REGULARISATION`] on every unknown, by Jacobi-
+/// preconditioned conjugate gradients on the normal equations, all three channels at once.
+fn solve(rows: &[Row], n: usize) -> Vec<[f32; 3]> {
+    let apply = |x: &[[f32; 3]], out: &mut [[f32; 3]]| {
+        for (o, xi) in out.iter_mut().zip(x) {
+            *o = xi.map(|v| REGULARISATION * v);
+        }
+        for r in rows {
+            let mut s = [0f32; 3];
+            for k in 0..4 {
+                if r.a[k] != 0.0 {
+                    for (ch, sc) in s.iter_mut().enumerate() {
+                        *sc += r.a[k] * x[r.idx[k] as usize][ch];
+                    }
+                }
+            }
+            for k in 0..4 {
+                if r.a[k] != 0.0 {
+                    for ch in 0..3 {
+                        out[r.idx[k] as usize][ch] += r.w * r.a[k] * s[ch];
+                    }
+                }
+            }
+        }
+    };
+    let mut diag = vec![REGULARISATION; n];
+    let mut b = vec![[0f32; 3]; n];
+    for r in rows {
+        for k in 0..4 {
+            if r.a[k] != 0.0 {
+                let i = r.idx[k] as usize;
+                diag[i] += r.w * r.a[k] * r.a[k];
+                for (bc, rhs) in b[i].iter_mut().zip(r.rhs) {
+                    *bc += r.w * r.a[k] * rhs;
+                }
+            }
+        }
+    }
+    let mut x = vec![[0f32; 3]; n];
+    let mut res = b.clone();
+    let mut z: Vec<[f32; 3]> = res
+        .iter()
+        .zip(&diag)
+        .map(|(r, d)| r.map(|v| v / d))
+        .collect();
+    let mut p = z.clone();
+    let mut ap = vec![[0f32; 3]; n];
+    let dot = |a: &[[f32; 3]], b: &[[f32; 3]]| -> [f64; 3] {
+        let mut s = [0f64; 3];
+        for (u, v) in a.iter().zip(b) {
+            for ch in 0..3 {
+                s[ch] += u[ch] as f64 * v[ch] as f64;
+            }
+        }
+        s
+    };
+    let norm0 = dot(&b, &b).map(f64::sqrt);
+    let mut rz = dot(&res, &z);
+    for _ in 0..MAX_ITERATIONS {
+        let rn = dot(&res, &res).map(f64::sqrt);
+        if (0..3).all(|ch| rn[ch] <= TOLERANCE as f64 * norm0[ch].max(1e-12)) {
+            break;
+        }
+        apply(&p, &mut ap);
+        let pap = dot(&p, &ap);
+        let alpha = [0, 1, 2].map(|ch| if pap[ch] > 0.0 { rz[ch] / pap[ch] } else { 0.0 });
+        for i in 0..n {
+            for ch in 0..3 {
+                x[i][ch] += (alpha[ch] * p[i][ch] as f64) as f32;
+                res[i][ch] -= (alpha[ch] * ap[i][ch] as f64) as f32;
+            }
+        }
+        for i in 0..n {
+            z[i] = res[i].map(|v| v / diag[i]);
+        }
+        let rz_new = dot(&res, &z);
+        let beta = [0, 1, 2].map(|ch| {
+            if rz[ch] > 0.0 {
+                rz_new[ch] / rz[ch]
+            } else {
+                0.0
+            }
+        });
+        for i in 0..n {
+            for ch in 0..3 {
+                p[i][ch] = z[i][ch] + (beta[ch] * p[i][ch] as f64) as f32;
+            }
+        }
+        rz = rz_new;
+    }
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fresco_core::nalgebra::Point3;
+
+    /// Two unit squares side by side (x in [0, 1] and [1, 2]), each its own chart, the left
+    /// one's colour `left`, the right one's `right`.
+    fn two_charts() -> (Mesh, Vec<[Uv; 3]>, Vec<u32>) {
+        let positions = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(1.0, 1.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(2.0, 0.0, 0.0),
+            Point3::new(2.0, 1.0, 0.0),
+        ];
+        let faces = vec![[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]];
+        let mut mesh = Mesh {
+            positions,
+            faces,
+            ..Mesh::default()
+        };
+        // Left chart in the left half of the atlas, right chart in the right half.
+        let corner: Vec<[Uv; 3]> = vec![
+            [[0.05, 0.05], [0.45, 0.05], [0.45, 0.45]],
+            [[0.05, 0.05], [0.45, 0.45], [0.05, 0.45]],
+            [[0.55, 0.05], [0.95, 0.05], [0.95, 0.45]],
+            [[0.55, 0.05], [0.95, 0.45], [0.55, 0.45]],
+        ];
+        mesh.corner_uvs = Some(corner.clone());
+        (mesh, corner, vec![0, 0, 1, 1])
+    }
+
+    #[test]
+    fn a_colour_step_between_two_charts_is_levelled_smoothly() {
+        let (mesh, uvs, chart_of) = two_charts();
+        // Left half of the atlas reads 0.45, right half 0.55 in every channel.
+        let read = |_: usize, u: f64, _: f64| if u < 0.5 { [0.45; 3] } else { [0.55; 3] };
+        let off = level_seams(&mesh, &uvs, &chart_of, |_| 0, 64, read, 0.1);
+        // At the seam (vertices 1 and 2) the two sides meet: 0.45 + g_left = 0.55 + g_right.
+        for v in [1, 2] {
+            let l = off.values[off.index[&(0, v)] as usize][0];
+            let r = off.values[off.index[&(1, v)] as usize][0];
+            assert!(
+                ((0.45 + l) - (0.55 + r)).abs() < 0.01,
+                "vertex {v}: {l} {r}"
+            );
+            // Split evenly: each side moves half-way.
+            assert!(
+                (l - 0.05).abs() < 0.01 && (r + 0.05).abs() < 0.01,
+                "{l} {r}"
+            );
+        }
+        // Away from the seam the offsets are smaller (smoothness pulls them, the
+        // regularisation keeps the level): the far vertices move less than the seam's.
+        let far_l = off.values[off.index[&(0, 0)] as usize][0];
+        assert!(far_l.abs() <= 0.05 + 1e-3, "{far_l}");
+        // Equal colours: no offsets.
+        let off = level_seams(&mesh, &uvs, &chart_of, |_| 0, 64, |_, _, _| [0.5; 3], 0.1);
+        assert!(off.values.iter().all(|v| v.iter().all(|x| x.abs() < 1e-6)));
+    }
+}
