@@ -26,7 +26,7 @@ fn main() {
         eprintln!("unknown camera model {}", args[2]);
         std::process::exit(2)
     });
-    let config = SfmConfig {
+    let mut config = SfmConfig {
         camera_model: model,
         camera_mode: if args[3] == "single" {
             CameraMode::Single
@@ -36,6 +36,8 @@ fn main() {
         colours: false,
         ..Default::default()
     };
+    // FOCAL_FROM_F=0: the default focal prior even when the fundamental matrices disagree.
+    config.focal_from_f.enabled = std::env::var("FOCAL_FROM_F").map_or(true, |v| v != "0");
     let reference = args.get(4).map(PathBuf::from);
     let runs: usize = args.get(5).and_then(|s| s.parse().ok()).unwrap_or(1);
     let common = args.get(6).map(|p| {

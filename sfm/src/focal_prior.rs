@@ -30,6 +30,10 @@ pub enum FocalSource {
     ExifSensorTable,
     /// No information: `1.2 * max(width, height)`.
     Default,
+    /// No information in the photos; estimated from the fundamental matrices of the verified
+    /// pairs before mapping (`focal_from_f.rs`), because it differed from the default.
+    #[serde(rename = "F-estimate")]
+    FEstimate,
 }
 
 impl FocalSource {

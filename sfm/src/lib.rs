@@ -3,7 +3,7 @@
 //! selection, descriptor and guided matching) -> [`verification`] (two-view geometry, view
 //! graph) -> [`mapping`] (tracks, incremental mapper, the sfm stage) with [`bundle`]
 //! adjustment; [`geometry`] holds the RANSAC and its estimators. Beside them: focal priors
-//! (`focal_prior.rs`), the workspace folder (`workspace.rs`), pose evaluation
+//! (`focal_prior.rs`) and the focal length from fundamental matrices (`focal_from_f.rs`), the workspace folder (`workspace.rs`), pose evaluation
 //! (`evaluate.rs`) and synthetic problems with known answers (`synthetic.rs`).
 //!
 //! Entry points: [`extract_features`], [`match_pairs`], [`verify_pair`], [`map`],
@@ -12,6 +12,7 @@
 pub mod bundle;
 pub mod evaluate;
 pub mod features;
+pub mod focal_from_f;
 pub mod focal_prior;
 pub mod geometry;
 pub mod mapping;

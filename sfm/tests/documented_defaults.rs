@@ -204,9 +204,22 @@ fn mapping_configs() {
         &[
             known("MapperConfig::default()", MapperConfig::default()),
             known("SilhouetteConfig::default()", SilhouetteConfig::default()),
+            known(
+                "FocalFromFConfig::default()",
+                fresco_sfm::focal_from_f::FocalFromFConfig::default(),
+            ),
         ],
     );
+    assert_documented_defaults(
+        include_str!("../src/focal_from_f.rs"),
+        "FocalFromFConfig",
+        &debug(&fresco_sfm::focal_from_f::FocalFromFConfig::default()),
+        &[],
+    );
     SfmConfig::default().check().unwrap();
+    let mut bad = SfmConfig::default();
+    bad.focal_from_f.max_spread = -1.0;
+    assert_eq!(bad.check().unwrap_err().field, "focal_from_f.max_spread");
     let mut bad = SfmConfig::default();
     bad.mapper.merge_min_points = 2;
     assert_eq!(bad.check().unwrap_err().field, "mapper.merge_min_points");

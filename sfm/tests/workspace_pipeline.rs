@@ -150,10 +150,12 @@ fn workspace_to_model_and_coloured_points() {
     assert!(e.max_rotation_deg < 0.2, "{e:?}");
     // The focal prior was 20% off; BA finds the true 600 px within 1%.
     assert!((summary.focal_px[&1] - 600.0).abs() < 6.0, "{summary:?}");
-    // The summary says where the focal length started: the photos' prior and its source.
+    // The summary says where the focal length started: the photos' prior was the 720 px
+    // default (20% off), the fundamental matrices of this general layout give 602 px (from 4
+    // well-conditioned pairs), which differs by more than 15% and replaced it.
     let prior = &summary.focal_priors[&1];
-    assert_eq!(prior.source, FocalSource::Default, "{summary:?}");
-    assert!((prior.focal_px - 720.0).abs() < 1e-9, "{summary:?}");
+    assert_eq!(prior.source, FocalSource::FEstimate, "{summary:?}");
+    assert!((prior.focal_px - 600.0).abs() < 30.0, "{summary:?}");
     let cloud = ply::read_mesh(ws.join("sparse").join("points.ply")).unwrap();
     assert_eq!(cloud.positions.len(), model.points3d.len());
     let colours = cloud.colors.expect("points.ply has colours");

@@ -14,7 +14,9 @@ use fresco_core::{Mesh, Rng};
 use fresco_sprites::bake::BakeConfig;
 use fresco_sprites::octree::{self, OctreeConfig};
 use fresco_sprites::pipeline::{self, View};
-use fresco_sprites::render::{RenderConfig, Rest, downsample, orbit_camera, psnr, render};
+use fresco_sprites::render::{
+    RenderConfig, Rest, downsample, orbit_camera, per_query, psnr, render,
+};
 use fresco_sprites::scene::Scene;
 use fresco_sprites::tree_mip::TreeMip;
 use fresco_sprites::{Footprint, Query, SpriteTree};
@@ -97,11 +99,11 @@ fn main() {
         let r_rate = rate(&random, &|q| tree.lookup(q));
         let f = |r: (f64, f64)| format!("{:.1} ({:.1})", r.0 / 1e6, r.1 / 1e6);
         if *case == "gears" {
-            // The goal case: every lookup path in both orders, the one before this layout
-            // (lookup_plain) included.
+            // The goal case: every lookup path in both orders (lookup_plain: the path before
+            // the lookup layout, each sprite tested in turn; all three share the pattern filter).
             for (order, qs) in [("surface", &surface), ("random", &random)] {
                 notes.push(format!(
-                    "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (before) {}, lookup {}, lookup_many {}",
+                    "{case}, {order} order, Mlookups/s wall (per CPU-s x threads): lookup_plain (no layout) {}, lookup {}, lookup_many {}",
                     f(rate(qs, &|q| tree.lookup_plain(q))),
                     f(rate(qs, &|q| tree.lookup(q))),
                     f(rate_many(qs, &tree)),
@@ -217,10 +219,17 @@ fn main() {
         [bb.max.x, bb.max.y, bb.max.z],
     );
     let (camera, pose) = orbit_camera(lo, hi, 512, 512, 30.0, 20.0, 40.0).unwrap();
-    let img = render(&mesh, &rest, &camera, &pose, &shaded, &|q| {
-        let c = octree::trilinear(&tex, q.p.map(|v| v as f64)).unwrap_or([1.0, 0.0, 1.0]);
-        [c[0], c[1], c[2], 1.0]
-    })
+    let img = render(
+        &mesh,
+        &rest,
+        &camera,
+        &pose,
+        &shaded,
+        &per_query(|q| {
+            let c = octree::trilinear(&tex, q.p.map(|v| v as f64)).unwrap_or([1.0, 0.0, 1.0]);
+            [c[0], c[1], c[2], 1.0]
+        }),
+    )
     .unwrap();
     img.save(pictures.join("sprites_octree.png")).unwrap();
     bake_check(&mesh, root, pictures);
@@ -377,9 +386,10 @@ fn rate_of(n: usize, pass: &(dyn Fn() -> f64 + Sync)) -> (f64, f64) {
     (best, best_cpu)
 }
 
-/// `--profile ORDER [PASSES]`: only the gears lookups on this thread, `PASSES` passes (default
-/// 20) in `surface` or `random` order, through `lookup` or (`surface-many`, `random-many`)
-/// `lookup_many`; for `perf stat` / `perf record` (`PASSES=0` measures the set-up).
+/// `--profile ORDER [PASSES [PATHS]]`: only the gears lookups on this thread, `PASSES` passes
+/// (default 20) in `surface` or `random` order, through `lookup_plain`, `lookup` and
+/// `lookup_many` in turn (or only the comma-separated `PATHS`); for `perf record`
+/// (`PASSES=0` measures the set-up).
 fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order: &str) {
     let passes: usize = std::env::args()
         .skip_while(|a| a != "--profile")
@@ -400,14 +410,32 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
     } else {
         surface
     };
-    // The three lookups in turn, pass after pass, so the machine's load weighs on each alike.
-    let names = ["lookup_plain (before)", "lookup", "lookup_many"];
+    // FIGURE1_QUERIES=n: only n queries (from FIGURE1_OFFSET, default 0), proportionally more
+    // passes (cache-resident runs).
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<usize>().ok());
+    let (qs, passes) = match env("FIGURE1_QUERIES") {
+        Some(n) if n < qs.len() => {
+            let o = env("FIGURE1_OFFSET").unwrap_or(0).min(qs.len() - n);
+            (&qs[o..o + n], passes * (qs.len() / n))
+        }
+        _ => (qs, passes),
+    };
+    // The three lookups in turn, pass after pass, so the machine's load weighs on each alike
+    // (or only those named by a third argument, e.g. `lookup_many`, for perf).
+    let only: Option<String> = std::env::args().skip_while(|a| a != "--profile").nth(3);
+    let names = ["lookup_plain (no layout)", "lookup", "lookup_many"];
     let mut cpu = [0f64; 3];
     let mut wall = [0f64; 3];
     let mut sums = [0f64; 3];
     let mut out = vec![[0f32; 4]; qs.len()];
     for _ in 0..passes {
         for (k, name) in names.iter().enumerate() {
+            if only
+                .as_ref()
+                .is_some_and(|o| !o.split(',').any(|p| name.starts_with(p)))
+            {
+                continue;
+            }
             let (t, c) = (Instant::now(), cpu_seconds());
             match *name {
                 "lookup_many" => tree.lookup_many(qs, &mut out),
@@ -426,7 +454,7 @@ fn profile(root: &Path, mesh: &Mesh, surface: &[Query], random: &[Query], order:
         }
     }
     let n = (passes * qs.len()) as f64;
-    for k in 0..3 {
+    for k in (0..3).filter(|&k| cpu[k] > 0.0) {
         println!(
             "{order} order, {}: {n} lookups, {:.1} M/s wall, {:.1} M per CPU-s on one thread (checksum {:.3})",
             names[k],

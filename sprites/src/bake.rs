@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::blend::{Footprint, Query};
 use crate::error::{Result, SpriteError};
-use crate::render::Rest;
+use crate::render::{Rest, Shade};
 
 /// Settings of a bake.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,7 +73,7 @@ pub fn bake(
     rest: &Rest,
     textures: &[Option<RgbImage>],
     config: &BakeConfig,
-    shade: &(dyn Fn(&Query) -> [f32; 4] + Sync),
+    shade: &Shade<'_>,
 ) -> Result<(Vec<RgbImage>, BakeReport)> {
     config.check()?;
     let uvs = mesh.corner_uvs.as_ref().ok_or_else(|| {
@@ -121,7 +121,7 @@ fn bake_slot(
     faces: &[usize],
     img: &mut RgbImage,
     config: &BakeConfig,
-    shade: &(dyn Fn(&Query) -> [f32; 4] + Sync),
+    shade: &Shade<'_>,
 ) -> (usize, usize) {
     let (w, h) = img.dimensions();
     let (wf, hf) = (w as f64, h as f64);
@@ -177,7 +177,9 @@ fn bake_slot(
         .par_chunks_mut(3 * w as usize)
         .enumerate()
         .map(|(y, row)| {
-            let (mut texels, mut decorated) = (0, 0);
+            // The row's covered texels as queries, then one batched lookup.
+            let mut queries = Vec::new();
+            let mut xs = Vec::new();
             for x in 0..w as usize {
                 let f = owner[y * w as usize + x];
                 if f == u32::MAX {
@@ -188,12 +190,17 @@ fn bake_slot(
                     - (t[2][0] - t[0][0]) * (t[1][1] - t[0][1]);
                 let b = barycentric(&t, [x as f64 + 0.5, y as f64 + 0.5], area);
                 let (p, normal) = rest.at(mesh, f as usize, b);
-                let c = shade(&Query {
+                queries.push(Query {
                     p: p.map(|v| v as f32),
                     normal: Some(normal),
                     footprint: derivs[f as usize],
                 });
-                texels += 1;
+                xs.push(x);
+            }
+            let mut colours = vec![[0f32; 4]; queries.len()];
+            shade(&queries, &mut colours);
+            let (texels, mut decorated) = (xs.len(), 0);
+            for (&x, c) in xs.iter().zip(&colours) {
                 decorated += (c[3] > 0.0) as usize;
                 let px = &mut row[3 * x..3 * x + 3];
                 for k in 0..3 {

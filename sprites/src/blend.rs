@@ -1,7 +1,7 @@
 //! Evaluation of the composite texture at a surface point from the sprites covering it
 //! (sections 5.3, 5.4 and 6): positioning `U = M^-1 (P - c)`, attenuation by the angle between
-//! the sprite and surface normals, pattern filtering from the screen-space footprint, and the
-//! blending modes. The tree lookup and the brute-force reference both call [`composite`]
+//! the sprite and surface normals, pattern filtering from the screen-space footprint
+//! ([`Pattern::filter_sq`], fixed point), and the blending modes. The tree lookup and the brute-force reference both call [`composite`]
 //! with the sprites in the same order, so they agree to the bit.
 //!
 //! Blending, in user order (lowest first), on premultiplied RGBA:
@@ -92,6 +92,14 @@ pub(crate) struct Blend {
     inv_width: f32,
 }
 
+impl Blend {
+    /// `cos_start - cos_end`, the divisor of the attenuation.
+    #[inline]
+    pub(crate) fn fade_range(&self) -> f32 {
+        self.cos_start - self.cos_end
+    }
+}
+
 /// The surface's screen-space footprint at a point: world-space derivatives of the surface
 /// point per pixel step in x and y (the rasteriser gives them, the paper's ddx/ddy).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,7 +118,9 @@ pub struct Query {
 }
 
 /// Premultiplied RGBA of sprite `s` at the query, weighted by the attenuation, or `None`
-/// when the point is outside its volume or the weight is zero.
+/// when the point is outside its volume or the weight is zero. (`lookup.rs` evaluates the
+/// same expressions for several queries at once in SIMD lanes, operation for operation, and
+/// ends in the same [`shade`].)
 #[inline]
 pub(crate) fn contribution(
     s: &Prepared,
@@ -125,7 +135,7 @@ pub(crate) fn contribution(
     let att = match q.normal {
         Some(n) => {
             let c = s.normal[0] * n[0] + s.normal[1] * n[1] + s.normal[2] * n[2];
-            let w = (c - b.cos_end) / (b.cos_start - b.cos_end);
+            let w = (c - b.cos_end) / b.fade_range();
             if w <= 0.0 {
                 return None;
             }
@@ -146,8 +156,15 @@ pub(crate) fn contribution(
         }
         None => 0.0,
     };
-    let c = pat.sample_sq(u[0] + 0.5, 0.5 - u[1], rho2);
-    Some([c[0] * att, c[1] * att, c[2] * att, c[3] * att])
+    Some(shade(pat, u[0], u[1], att, rho2))
+}
+
+/// The pattern at sprite coordinates (`u0`, `u1`) filtered for the squared footprint `rho2`
+/// (level-0 texels), weighted by the attenuation `att`.
+#[inline]
+pub(crate) fn shade(pat: &Pattern, u0: f32, u1: f32, att: f32, rho2: f32) -> [f32; 4] {
+    let c = pat.filter_sq(u0 + 0.5, 0.5 - u1, rho2);
+    [c[0] * att, c[1] * att, c[2] * att, c[3] * att]
 }
 
 /// A run of blobby or Voronoi sprites being gathered.
@@ -220,7 +237,7 @@ impl Compositor {
     }
 
     /// Blends the contribution `c` of a sprite with mode `mode`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn push(&mut self, mode: BlendMode, c: [f32; 4], b: &Blend) {
         let (run, acc) = (&mut self.run, &mut self.acc);
         match mode {

@@ -10,6 +10,11 @@
 //!   positioning test `|M^-1 (P - c)| <= 1/2` and the normal-angle test run on all sprites of
 //!   a leaf at once in SIMD lanes (plain per-lane arithmetic the compiler vectorises).
 //!
+//! - Blocks: consecutive queries in one cell (surface order) are tested against each sprite
+//!   of the leaf at once: first their bounding box against 8 sprites ([`Chunk::box_candidates`]),
+//!   then, for each sprite that meets the box, 4 queries per SIMD register
+//!   ([`QueryLanes::for_each_hit`]).
+//!
 //! The lane tests only *select candidates*: they keep every sprite whose volume may hold
 //! the point (with a margin), and each candidate is then evaluated by the same scalar code as
 //! the brute-force reference ([`crate::blend::contribution`]), in leaf (user) order. So the
@@ -17,11 +22,14 @@
 
 use fresco_pst::octree_texture::{Pool, TAG_CHILD, TAG_LEAF, cell, payload, tag};
 
+use crate::blend::{Blend, Query};
 use crate::sprite::Prepared;
 use crate::tree::NO_SPRITE;
 
 /// Sprites tested at once.
 pub const LANES: usize = 8;
+/// Most queries of one cell evaluated as a block (surface order): see [`QueryLanes`].
+pub(crate) const BLOCK: usize = 32;
 /// Margin of the candidate tests: a lane test keeps a sprite when `|u|, |v|, |w| <= 1/2 +
 /// MARGIN` and the cosine to the surface normal is at least `cos_end - MARGIN`; the scalar
 /// evaluation decides exactly.
@@ -106,6 +114,67 @@ impl Chunk {
         }
     }
 
+    /// Bit `i` set when lane `i`'s sprite may hold a point of the box of centre `m` and
+    /// half-extents `r` (world units): `|M^-1 (m - c)|_k <= 1/2 + sum_j |M^-1_kj| r_j` on each
+    /// axis `k` (interval arithmetic, with the same margin as [`Chunk::candidates`]). Used for
+    /// a block of queries in surface order: a sprite that meets none of them is not tested
+    /// again per query.
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    pub(crate) fn box_candidates(&self, m: [f32; 3], r: [f32; 3]) -> u32 {
+        use std::arch::x86_64::*;
+        // SAFETY: as in `candidates`: SSE2 is baseline, loads read lanes half..half + 4 of
+        // 8-float arrays.
+        unsafe {
+            let abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff));
+            let lim = _mm_set1_ps(0.5 + MARGIN);
+            let mv = m.map(|v| _mm_set1_ps(v));
+            let rv = r.map(|v| _mm_set1_ps(v));
+            let mut bits = 0;
+            for half in [0, 4] {
+                let ld = |v: &[f32; LANES]| _mm_loadu_ps(v.as_ptr().add(half));
+                let d = [0, 1, 2].map(|a| _mm_sub_ps(mv[a], ld(&self.center[a])));
+                let inside = |k: usize| {
+                    let row = [0, 1, 2].map(|j| ld(&self.inv[3 * k + j]));
+                    let u = _mm_add_ps(
+                        _mm_add_ps(_mm_mul_ps(row[0], d[0]), _mm_mul_ps(row[1], d[1])),
+                        _mm_mul_ps(row[2], d[2]),
+                    );
+                    let reach = _mm_add_ps(
+                        _mm_add_ps(
+                            _mm_mul_ps(_mm_and_ps(row[0], abs), rv[0]),
+                            _mm_mul_ps(_mm_and_ps(row[1], abs), rv[1]),
+                        ),
+                        _mm_mul_ps(_mm_and_ps(row[2], abs), rv[2]),
+                    );
+                    _mm_cmple_ps(_mm_and_ps(u, abs), _mm_add_ps(lim, reach))
+                };
+                let keep = _mm_and_ps(_mm_and_ps(inside(0), inside(1)), inside(2));
+                bits |= (_mm_movemask_ps(keep) as u32) << half;
+            }
+            bits
+        }
+    }
+
+    /// The same test lane by lane, elsewhere.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline]
+    pub(crate) fn box_candidates(&self, m: [f32; 3], r: [f32; 3]) -> u32 {
+        let mut bits = 0;
+        for i in 0..LANES {
+            let d = [0, 1, 2].map(|a| m[a] - self.center[a][i]);
+            let mut keep = true;
+            for k in 0..3 {
+                let row = [0, 1, 2].map(|j| self.inv[3 * k + j][i]);
+                let u = row[0] * d[0] + row[1] * d[1] + row[2] * d[2];
+                let reach = row[0].abs() * r[0] + row[1].abs() * r[1] + row[2].abs() * r[2];
+                keep &= u.abs() <= 0.5 + MARGIN + reach;
+            }
+            bits |= (keep as u32) << i;
+        }
+        bits
+    }
+
     /// The same test lane by lane, elsewhere.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
@@ -128,6 +197,177 @@ impl Chunk {
             bits |= (keep as u32) << i;
         }
         bits
+    }
+}
+
+/// The queries of a block in structure of arrays (all with a normal and a footprint), to
+/// evaluate one sprite at 4 of them per SSE2 register.
+pub(crate) struct QueryLanes {
+    p: [[f32; BLOCK]; 3],
+    n: [[f32; BLOCK]; 3],
+    dx: [[f32; BLOCK]; 3],
+    dy: [[f32; BLOCK]; 3],
+    len: usize,
+}
+
+impl QueryLanes {
+    pub(crate) fn new() -> QueryLanes {
+        QueryLanes {
+            p: [[0.0; BLOCK]; 3],
+            n: [[0.0; BLOCK]; 3],
+            dx: [[0.0; BLOCK]; 3],
+            dy: [[0.0; BLOCK]; 3],
+            len: 0,
+        }
+    }
+
+    /// Takes the block `qs` (at most [`BLOCK`]); false when a query has no normal or no
+    /// footprint (those go one at a time).
+    #[inline]
+    pub(crate) fn load(&mut self, qs: &[Query]) -> bool {
+        debug_assert!(qs.len() <= BLOCK);
+        for (k, q) in qs.iter().enumerate() {
+            let (Some(n), Some(f)) = (q.normal, q.footprint) else {
+                return false;
+            };
+            for a in 0..3 {
+                self.p[a][k] = q.p[a];
+                self.n[a][k] = n[a];
+                self.dx[a][k] = f.dpdx[a];
+                self.dy[a][k] = f.dpdy[a];
+            }
+        }
+        self.len = qs.len();
+        true
+    }
+
+    /// Calls `hit(k, u0, u1, att, rho2)` for each query `k` of the block (in order) that
+    /// sprite `s` contributes to, with what [`crate::blend::contribution`] computes before
+    /// [`crate::blend::shade`]: the same operations in the same order on 4 queries per
+    /// register, so the same bits. `wp`, `hp`: the pattern's size in texels.
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    pub(crate) fn for_each_hit(
+        &self,
+        s: &Prepared,
+        wp: f32,
+        hp: f32,
+        b: &Blend,
+        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+    ) {
+        use std::arch::x86_64::*;
+        let r = &s.inv;
+        for g in (0..self.len).step_by(4) {
+            let valid = if self.len - g >= 4 {
+                0xf
+            } else {
+                (1u32 << (self.len - g)) - 1
+            };
+            let (mut u0, mut u1, mut att, mut fa, mut fb) =
+                ([0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4]);
+            // SAFETY: SSE2 is part of the x86-64 baseline; the loads read lanes g..g + 4 of
+            // arrays of BLOCK floats (g + 4 <= BLOCK: BLOCK is a multiple of 4), the stores
+            // write arrays of 4 floats.
+            let mut mask = unsafe {
+                let ld = |v: &[f32; BLOCK]| _mm_loadu_ps(v.as_ptr().add(g));
+                let set = |v: f32| _mm_set1_ps(v);
+                // r[k][0] * v[0] + r[k][1] * v[1] + r[k][2] * v[2], as Prepared::local.
+                let row = |k: usize, v: &[__m128; 3]| {
+                    _mm_add_ps(
+                        _mm_add_ps(
+                            _mm_mul_ps(set(r[k][0]), v[0]),
+                            _mm_mul_ps(set(r[k][1]), v[1]),
+                        ),
+                        _mm_mul_ps(set(r[k][2]), v[2]),
+                    )
+                };
+                let d = [0, 1, 2].map(|a| _mm_sub_ps(ld(&self.p[a]), set(s.center[a])));
+                let u = [row(0, &d), row(1, &d), row(2, &d)];
+                let abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff));
+                let out = |x: __m128| _mm_cmpgt_ps(_mm_and_ps(x, abs), set(0.5));
+                let outside = _mm_or_ps(_mm_or_ps(out(u[0]), out(u[1])), out(u[2]));
+                let mut mask = valid & !(_mm_movemask_ps(outside) as u32);
+                if mask != 0 {
+                    let n = [0, 1, 2].map(|a| ld(&self.n[a]));
+                    let c = _mm_add_ps(
+                        _mm_add_ps(
+                            _mm_mul_ps(set(s.normal[0]), n[0]),
+                            _mm_mul_ps(set(s.normal[1]), n[1]),
+                        ),
+                        _mm_mul_ps(set(s.normal[2]), n[2]),
+                    );
+                    let w = _mm_div_ps(_mm_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
+                    mask &= !(_mm_movemask_ps(_mm_cmple_ps(w, _mm_setzero_ps())) as u32);
+                    // minps gives the second operand for NaN, as f32::min does.
+                    _mm_storeu_ps(att.as_mut_ptr(), _mm_min_ps(w, set(1.0)));
+                    _mm_storeu_ps(u0.as_mut_ptr(), u[0]);
+                    _mm_storeu_ps(u1.as_mut_ptr(), u[1]);
+                    let dx = [0, 1, 2].map(|a| ld(&self.dx[a]));
+                    let dy = [0, 1, 2].map(|a| ld(&self.dy[a]));
+                    let (ux, vx) = (
+                        _mm_mul_ps(row(0, &dx), set(wp)),
+                        _mm_mul_ps(row(1, &dx), set(hp)),
+                    );
+                    let (uy, vy) = (
+                        _mm_mul_ps(row(0, &dy), set(wp)),
+                        _mm_mul_ps(row(1, &dy), set(hp)),
+                    );
+                    _mm_storeu_ps(
+                        fa.as_mut_ptr(),
+                        _mm_add_ps(_mm_mul_ps(ux, ux), _mm_mul_ps(vx, vx)),
+                    );
+                    _mm_storeu_ps(
+                        fb.as_mut_ptr(),
+                        _mm_add_ps(_mm_mul_ps(uy, uy), _mm_mul_ps(vy, vy)),
+                    );
+                }
+                mask
+            };
+            while mask != 0 {
+                let k = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                hit(g + k, u0[k], u1[k], att[k], fa[k].max(fb[k]));
+            }
+        }
+    }
+
+    /// The same lane by lane, elsewhere.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline]
+    pub(crate) fn for_each_hit(
+        &self,
+        s: &Prepared,
+        wp: f32,
+        hp: f32,
+        b: &Blend,
+        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+    ) {
+        let r = &s.inv;
+        for k in 0..self.len {
+            let u = s.local([self.p[0][k], self.p[1][k], self.p[2][k]]);
+            if u[0].abs() > 0.5 || u[1].abs() > 0.5 || u[2].abs() > 0.5 {
+                continue;
+            }
+            let c = s.normal[0] * self.n[0][k]
+                + s.normal[1] * self.n[1][k]
+                + s.normal[2] * self.n[2][k];
+            let w = (c - b.cos_end) / b.fade_range();
+            if w <= 0.0 {
+                continue;
+            }
+            let d = |v: &[[f32; BLOCK]; 3], row: usize| {
+                r[row][0] * v[0][k] + r[row][1] * v[1][k] + r[row][2] * v[2][k]
+            };
+            let (ux, vx) = (d(&self.dx, 0) * wp, d(&self.dx, 1) * hp);
+            let (uy, vy) = (d(&self.dy, 0) * wp, d(&self.dy, 1) * hp);
+            hit(
+                k,
+                u[0],
+                u[1],
+                w.min(1.0),
+                (ux * ux + vx * vx).max(uy * uy + vy * vy),
+            );
+        }
     }
 }
 
@@ -217,6 +457,12 @@ impl Flat {
     pub(crate) fn chunks(&self, v: u32) -> &[Chunk] {
         let k = self.chunks_per_vector;
         &self.chunks[v as usize * k..(v as usize + 1) * k]
+    }
+
+    /// Chunks per leaf vector.
+    #[inline]
+    pub(crate) fn chunks_per_vector(&self) -> usize {
+        self.chunks_per_vector
     }
 
     /// Bits per axis of the fixed-point coordinate that name the cell of `level`.

@@ -106,7 +106,9 @@ pub fn render_scene(
         view.elevation_deg,
         view.fov_deg,
     )?;
-    let img = render(mesh, &rest, &camera, &pose, config, &|q| tree.lookup(q))?;
+    let img = render(mesh, &rest, &camera, &pose, config, &|qs, out| {
+        tree.lookup_many(qs, out)
+    })?;
     Ok((img, tree.memory()))
 }
 
@@ -148,7 +150,9 @@ pub fn bake_scene(
         [bb.max.x, bb.max.y, bb.max.z],
         t,
     )?;
-    let (images, report) = bake(&m.mesh, &rest, &m.textures, config, &|q| tree.lookup(q))?;
+    let (images, report) = bake(&m.mesh, &rest, &m.textures, config, &|qs, out| {
+        tree.lookup_many(qs, out)
+    })?;
     fresco_core::gltf::write_glb(output, &m.mesh, &images)?;
     if let Some(png) = atlas_png {
         let mut bytes = Vec::new();

@@ -83,15 +83,31 @@ impl Rest {
     }
 }
 
+/// The texture of a render or a bake: premultiplied RGBA at each query (`out[i]` for
+/// `queries[i]`), given a batch at a time (a row of pixels or texels, in surface order) so
+/// that [`crate::SpriteTree::lookup_many`] can share work between neighbours.
+pub type Shade<'a> = dyn Fn(&[Query], &mut [[f32; 4]]) + Sync + 'a;
+
+/// One query at a time as a [`Shade`].
+pub fn per_query(
+    f: impl Fn(&Query) -> [f32; 4] + Sync,
+) -> impl Fn(&[Query], &mut [[f32; 4]]) + Sync {
+    move |qs, out| {
+        for (q, o) in qs.iter().zip(out) {
+            *o = f(q);
+        }
+    }
+}
+
 /// Renders `mesh` seen by `camera` at `cam_from_world`, coloured by `shade` (premultiplied
-/// RGBA of the texture at a query) over `config.base`.
+/// RGBA of the texture at each query, a row at a time) over `config.base`.
 pub fn render(
     mesh: &Mesh,
     rest: &Rest,
     camera: &Camera,
     cam_from_world: &CamFromWorld,
     config: &RenderConfig,
-    shade: &(dyn Fn(&Query) -> [f32; 4] + Sync),
+    shade: &Shade<'_>,
 ) -> Result<RgbImage> {
     let map = SampleMap::new(camera, 1).map_err(|e| SpriteError::Input(e.to_string()))?;
     let vis = visibility(mesh, &map, cam_from_world, &RasterConfig::default())
@@ -103,6 +119,9 @@ pub fn render(
         .enumerate()
         .for_each(|(y, row)| {
             let y = y as u32;
+            // The row's queries (pixel, light) first, then one batched lookup.
+            let mut queries = Vec::with_capacity(w as usize);
+            let mut pixels = Vec::with_capacity(w as usize);
             for x in 0..w {
                 let out = &mut row[3 * x as usize..3 * x as usize + 3];
                 let f = vis.face_at(x, y);
@@ -136,7 +155,7 @@ pub fn render(
                         dpdy: dy.map(|v| v as f32),
                     }
                 });
-                let c = shade(&Query {
+                queries.push(Query {
                     p: p.map(|v| v as f32),
                     normal: Some(normal),
                     footprint,
@@ -149,6 +168,12 @@ pub fn render(
                 } else {
                     1.0
                 };
+                pixels.push((x as usize, light));
+            }
+            let mut colours = vec![[0f32; 4]; queries.len()];
+            shade(&queries, &mut colours);
+            for (&(x, light), c) in pixels.iter().zip(&colours) {
+                let out = &mut row[3 * x..3 * x + 3];
                 for k in 0..3 {
                     let base = config.base[k] as f32 / 255.0;
                     let v = (c[k] + (1.0 - c[3]) * base) * light;

@@ -19,9 +19,9 @@ use fresco_pst::octree_texture::{
 
 use std::sync::OnceLock;
 
-use crate::blend::{Blend, BlendConfig, Compositor, Query, composite, contribution};
+use crate::blend::{Blend, BlendConfig, Compositor, Query, composite, contribution, shade};
 use crate::error::{Result, SpriteError};
-use crate::lookup::Flat;
+use crate::lookup::{BLOCK, Flat, QueryLanes};
 use crate::pattern::Pattern;
 use crate::sprite::{Prepared, Sprite, meets_box, overlap_in_box};
 
@@ -32,6 +32,13 @@ pub const NO_SPRITE: u32 = u32::MAX;
 const GROW: f64 = 1e-4;
 /// Bytes of one row of the sprite parameter table ([`Prepared`]: 16 floats).
 pub const SPRITE_ROW_BYTES: usize = 64;
+
+/// Buffers of [`SpriteTree::lookup_many`], reused from block to block.
+struct Scratch {
+    /// Per chunk of the leaf: the sprites that meet the block's box.
+    bits: Vec<u32>,
+    lanes: QueryLanes,
+}
 
 /// Shape of the tree.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -96,6 +103,8 @@ pub struct SpriteTree {
     config: TreeConfig,
     min: [f64; 3],
     size: f64,
+    /// `1 / size`, for the fixed-point coordinates of lookups.
+    inv_size: f64,
     /// Leaf vectors, `o_max` ids each.
     vectors: Vec<u32>,
     free_vectors: Vec<u32>,
@@ -158,6 +167,7 @@ impl SpriteTree {
             config,
             min,
             size,
+            inv_size: 1.0 / size,
             vectors: Vec::new(),
             free_vectors: Vec::new(),
             sprites: Vec::new(),
@@ -517,13 +527,14 @@ impl SpriteTree {
     #[inline]
     pub fn fixed_inside(&self, p: [f32; 3]) -> Option<[u32; 3]> {
         let mut f = [0u32; 3];
-        let inv = 1.0 / self.size;
         for a in 0..3 {
-            let t = (p[a] as f64 - self.min[a]) * inv;
+            let t = (p[a] as f64 - self.min[a]) * self.inv_size;
             if !(0.0..1.0).contains(&t) {
                 return None;
             }
-            f[a] = (t * 4_294_967_296.0) as u32;
+            // SAFETY: t is in [0, 1) (not NaN), so t * 2^32 is finite and its integer part
+            // fits a u32: the conversion needs none of `as`'s saturation code.
+            f[a] = unsafe { (t * 4_294_967_296.0).to_int_unchecked::<u32>() };
         }
         Some(f)
     }
@@ -580,33 +591,154 @@ impl SpriteTree {
 
     /// [`SpriteTree::lookup`] of each query into `out` (same length). Queries in surface
     /// order (as a bake or a scanline visits them) share the descent while they stay in one
-    /// cell.
+    /// cell, and are evaluated in blocks of up to [`BLOCK`] consecutive queries of one cell:
+    /// the sprites of the leaf are tested once against the block's bounding box, and only
+    /// those that meet it are evaluated for each query of the block.
     pub fn lookup_many(&self, queries: &[Query], out: &mut [[f32; 4]]) {
         assert_eq!(queries.len(), out.len(), "one output per query");
         let flat = self.flat();
         // The last cell reached: its fixed-point point, shift and leaf vector.
         let mut last: Option<([u32; 3], u32, Option<u32>)> = None;
-        for (q, o) in queries.iter().zip(out) {
-            let Some(f) = self.fixed_inside(q.p) else {
-                *o = [0.0; 4];
+        let same = |f: [u32; 3], g: [u32; 3], shift: u32| {
+            ((f[0] ^ g[0]) | (f[1] ^ g[1]) | (f[2] ^ g[2])) >> shift == 0
+        };
+        let mut scratch = Scratch {
+            bits: vec![0u32; flat.chunks_per_vector()],
+            lanes: QueryLanes::new(),
+        };
+        let mut i = 0;
+        // The fixed-point point of query i when already known.
+        let mut next = None;
+        while i < queries.len() {
+            let Some(f) = next.take().or_else(|| self.fixed_inside(queries[i].p)) else {
+                out[i] = [0.0; 4];
+                i += 1;
                 continue;
             };
-            let vector = match last {
-                Some((g, shift, v))
-                    if ((f[0] ^ g[0]) | (f[1] ^ g[1]) | (f[2] ^ g[2])) >> shift == 0 =>
-                {
-                    v
-                }
+            let (g, shift, vector) = match last {
+                Some((g, shift, v)) if same(f, g, shift) => (g, shift, v),
                 _ => {
                     let d = flat.descend(f, self.config.max_depth);
-                    last = Some((f, flat.cell_shift(d.level), d.vector));
-                    d.vector
+                    let l = (f, flat.cell_shift(d.level), d.vector);
+                    last = Some(l);
+                    l
                 }
             };
-            *o = match vector {
-                Some(v) => self.evaluate(flat, v, q),
-                None => [0.0; 4],
-            };
+            // The block: the following queries in the same cell.
+            let mut j = i + 1;
+            while j < queries.len() && j - i < BLOCK {
+                match self.fixed_inside(queries[j].p) {
+                    Some(h) if same(h, g, shift) => j += 1,
+                    h => {
+                        next = h;
+                        break;
+                    }
+                }
+            }
+            match vector {
+                Some(v) if j - i > 1 => {
+                    self.evaluate_block(flat, v, &queries[i..j], &mut out[i..j], &mut scratch)
+                }
+                Some(v) => out[i] = self.evaluate(flat, v, &queries[i]),
+                None => out[i..j].fill([0.0; 4]),
+            }
+            i = j;
+        }
+    }
+
+    /// The queries `qs` (two or more, all in leaf vector `v`'s cell): the leaf's sprites are
+    /// tested against the queries' bounding box once (one mask per chunk), then each query
+    /// blends the sprites that passed, in user order: 4 queries per SSE2 register when they
+    /// all have normals and footprints ([`QueryLanes`]), else with the reference's scalar
+    /// evaluation.
+    fn evaluate_block(
+        &self,
+        flat: &Flat,
+        v: u32,
+        qs: &[Query],
+        out: &mut [[f32; 4]],
+        scratch: &mut Scratch,
+    ) {
+        let (mut lo, mut hi) = (qs[0].p, qs[0].p);
+        for q in &qs[1..] {
+            for a in 0..3 {
+                lo[a] = lo[a].min(q.p[a]);
+                hi[a] = hi[a].max(q.p[a]);
+            }
+        }
+        let m = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        // Half-extents rounded up a little, so the box holds every point despite the
+        // rounding of m.
+        let r = [0, 1, 2].map(|a| 0.5 * (hi[a] - lo[a]) * (1.0 + 1e-5) + 2e-7 * m[a].abs());
+        let chunks = flat.chunks(v);
+        let bits = &mut scratch.bits;
+        let (mut used, mut count, mut first) = (0, 0, None);
+        for (chunk, b) in chunks.iter().zip(bits.iter_mut()) {
+            if chunk.id[0] == NO_SPRITE {
+                break;
+            }
+            *b = chunk.box_candidates(m, r);
+            if first.is_none() && *b != 0 {
+                first = Some(chunk.id[b.trailing_zeros() as usize]);
+            }
+            count += b.count_ones();
+            used += 1;
+        }
+        out.fill([0.0; 4]);
+        let Some(first) = first else {
+            return;
+        };
+        let chunks = &chunks[..used];
+        let lanes = &mut scratch.lanes;
+        if !lanes.load(qs) {
+            for (q, o) in qs.iter().zip(out) {
+                let mut acc = Compositor::new();
+                for (chunk, &b) in chunks.iter().zip(bits.iter()) {
+                    let mut b = b;
+                    while b != 0 {
+                        let lane = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let s = &self.prepared[chunk.id[lane] as usize];
+                        if let Some(c) = contribution(s, &self.patterns, q, &self.blend) {
+                            acc.push(s.blend, c, &self.blend);
+                        }
+                    }
+                }
+                *o = acc.finish(&self.blend);
+            }
+            return;
+        }
+        let blend = &self.blend;
+        if count == 1 {
+            // One sprite meets the block (the common case): each query it covers blends it
+            // alone.
+            let s = &self.prepared[first as usize];
+            let pat = &self.patterns[s.pattern as usize];
+            let (wp, hp) = (pat.width() as f32, pat.height() as f32);
+            lanes.for_each_hit(s, wp, hp, blend, |k, u0, u1, att, rho2| {
+                let mut acc = Compositor::new();
+                acc.push(s.blend, shade(pat, u0, u1, att, rho2), blend);
+                out[k] = acc.finish(blend);
+            });
+            return;
+        }
+        // Sprite by sprite in user order, 4 queries at a time; each query blends its own.
+        let mut acc: [Compositor; BLOCK] = std::array::from_fn(|_| Compositor::new());
+        for (chunk, &b) in chunks.iter().zip(bits.iter()) {
+            let mut b = b;
+            while b != 0 {
+                let lane = b.trailing_zeros() as usize;
+                b &= b - 1;
+                let s = &self.prepared[chunk.id[lane] as usize];
+                let pat = &self.patterns[s.pattern as usize];
+                let (wp, hp) = (pat.width() as f32, pat.height() as f32);
+                lanes.for_each_hit(s, wp, hp, blend, |k, u0, u1, att, rho2| {
+                    acc[k].push(s.blend, shade(pat, u0, u1, att, rho2), blend)
+                });
+            }
+        }
+        for (a, o) in acc.into_iter().zip(out) {
+            *o = a.finish(blend);
         }
     }
 
@@ -642,9 +774,8 @@ impl SpriteTree {
     /// The reference evaluation: every sprite of `order` (from [`SpriteTree::user_order`]),
     /// no tree. Points outside the tree's cube are transparent, as for [`SpriteTree::lookup`].
     pub fn brute_force(&self, order: &[u32], q: &Query) -> [f32; 4] {
-        let inv = 1.0 / self.size;
         let inside = (0..3).all(|a| {
-            let t = (q.p[a] as f64 - self.min[a]) * inv;
+            let t = (q.p[a] as f64 - self.min[a]) * self.inv_size;
             (0.0..1.0).contains(&t)
         });
         if !inside {

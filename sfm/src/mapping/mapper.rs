@@ -49,7 +49,9 @@ use crate::geometry::pnp::{PnpConfig, estimate_pose};
 use crate::geometry::ransac::{Estimator, RansacConfig, ransac};
 use crate::geometry::triangulation::{TriangulationConfig, View, ray_angle, triangulate};
 use crate::geometry::two_view::Correspondence;
-use crate::mapping::merge_through_matches::{join_models, similarity_through_matches};
+use crate::mapping::merge_through_matches::{
+    join_consistency, join_models, similarity_through_matches,
+};
 use crate::mapping::tracks::{PairMatches, Tracks, build_tracks};
 
 /// An image as the mapper sees it: keypoints in pixels and, optionally, their colours.
@@ -95,7 +97,10 @@ pub struct MapperConfig {
     /// Smallest median triangulation angle of an initial pair, degrees. Default: `16.0` (COLMAP's);
     /// halved once if no pair reaches it.
     pub init_min_angle_deg: f64,
-    /// Fewest points the initial pair must triangulate. Default: `50`.
+    /// Fewest points the initial pair must triangulate; in the relaxed pass (pairs of fewer
+    /// than `init_min_inliers`) at most half the relaxed inlier floor, since a pair cannot
+    /// triangulate more points than it has inliers (a pair of 60 inliers whose pose is right
+    /// triangulates 40-55: asking 50 of it refused every weakly textured pair). Default: `50`.
     pub init_min_points: usize,
     /// Most initial pairs tried per model. Default: `50`.
     pub init_max_trials: usize,
@@ -174,6 +179,13 @@ pub struct MapperConfig {
     /// that register one image on retry, here spread over the images of two models, with 4
     /// unknowns fitted instead of 6.
     pub merge_min_matches: usize,
+    /// A merge through matches is kept only if, after the merged model's adjustment, at
+    /// least this fraction of the connecting matches' 2D-3D correspondences (both ways)
+    /// reproject within `filter_max_error_px` (`merge_through_matches::join_consistency`):
+    /// a right merge explains nearly all of them (the weak ring of the tests: 898 of 898), a
+    /// wrong one (a repeated structure, chance matches) only the subset that fooled the
+    /// RANSAC, which accepts 25% (the repeated-structure test: 72 of 144). Default: `0.6`.
+    pub merge_min_consistent_fraction: f64,
 }
 
 impl Default for MapperConfig {
@@ -205,6 +217,7 @@ impl Default for MapperConfig {
             merge_max_error_px: 8.0,
             merge_through_matches: true,
             merge_min_matches: 15,
+            merge_min_consistent_fraction: 0.6,
         }
     }
 }
@@ -283,6 +296,12 @@ impl MapperConfig {
             "retry_min_inliers",
             self.retry_min_inliers,
             ">= 4 (P3P's sample and one check)",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.merge_min_consistent_fraction),
+            "merge_min_consistent_fraction",
+            self.merge_min_consistent_fraction,
+            "in [0, 1]",
         )?;
         require(
             (0.0..=1.0).contains(&self.retry_min_inlier_ratio),
@@ -1472,14 +1491,41 @@ fn initial_model<'a>(
             .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
     });
     let mut best_angle: f64 = 0.0;
-    for (min_inliers, min_angle) in [
-        (config.init_min_inliers, config.init_min_angle_deg),
-        (config.init_min_inliers, 0.5 * config.init_min_angle_deg),
-        (relaxed_inliers, 0.5 * config.init_min_angle_deg),
+    let relaxed_points = config.init_min_points.min((relaxed_inliers / 2).max(1));
+    // The last pass retries the relaxed pairs with the five-point pose when their two-view
+    // pose triangulates too few points (see `try_initial_pair`).
+    for (min_inliers, min_angle, min_points, five_point) in [
+        (
+            config.init_min_inliers,
+            config.init_min_angle_deg,
+            config.init_min_points,
+            false,
+        ),
+        (
+            config.init_min_inliers,
+            0.5 * config.init_min_angle_deg,
+            config.init_min_points,
+            false,
+        ),
+        (
+            relaxed_inliers,
+            0.5 * config.init_min_angle_deg,
+            relaxed_points,
+            false,
+        ),
+        (
+            relaxed_inliers,
+            0.5 * config.init_min_angle_deg,
+            relaxed_points,
+            true,
+        ),
     ] {
         let pairs = candidates.iter().filter(|p| p.inliers.len() >= min_inliers);
         for pair in pairs.take(config.init_max_trials) {
-            match try_initial_pair(ctx, used, pair, min_angle)? {
+            if five_point && pair.cam2_from_cam1.is_none() {
+                continue; // already tried with the five-point pose
+            }
+            match try_initial_pair(ctx, used, pair, min_angle, min_points, five_point)? {
                 InitAttempt::Ok(b) => return Ok(Ok(b)),
                 InitAttempt::SmallAngle(a) => best_angle = best_angle.max(a),
                 InitAttempt::Failed => {}
@@ -1849,38 +1895,48 @@ fn merge_models(
     Some(merged)
 }
 
-/// Tries `pair` as the start of a model: its relative pose (from the two-view geometry, else
-/// the five-point essential matrix under the prior intrinsics), its points, judged by their
-/// median triangulation angle against `min_angle_deg`, then a global adjustment and filtering.
+/// Tries `pair` as the start of a model: its relative pose (from the two-view geometry; if
+/// none, or with `five_point`, the five-point essential matrix under the prior intrinsics), its points, judged by their median triangulation angle against
+/// `min_angle_deg`, then a global adjustment and filtering.
 fn try_initial_pair<'a>(
     ctx: &'a MapperContext<'a>,
     used: &'a BTreeSet<u32>,
     pair: &MapperPair,
     min_angle_deg: f64,
+    min_points: usize,
+    five_point: bool,
 ) -> Result<InitAttempt<'a>, MapperError> {
     let config = ctx.config;
     let im1 = ctx.image(pair.image1);
     let im2 = ctx.image(pair.image2);
     let c1 = &ctx.input.cameras[&im1.camera_id];
     let c2 = &ctx.input.cameras[&im2.camera_id];
-    let pose = match pair.cam2_from_cam1 {
-        Some(p) => p,
-        None => {
-            let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
-                .inliers
-                .iter()
-                .map(|m| (im1.keypoints[m[0] as usize], im2.keypoints[m[1] as usize]))
-                .collect();
-            match estimate_relative_pose(
-                c1,
-                c2,
-                &pts,
-                (pair.image1 as u64) << 32 | pair.image2 as u64,
-            ) {
-                Some(p) => p.0,
-                None => return Ok(InitAttempt::Failed),
-            }
-        }
+    let estimate = || {
+        let pts: Vec<(Point2<f64>, Point2<f64>)> = pair
+            .inliers
+            .iter()
+            .map(|m| (im1.keypoints[m[0] as usize], im2.keypoints[m[1] as usize]))
+            .collect();
+        estimate_relative_pose(
+            c1,
+            c2,
+            &pts,
+            (pair.image1 as u64) << 32 | pair.image2 as u64,
+        )
+        .map(|p| p.0)
+    };
+    // The two-view geometry's pose, or the five-point pose under the current intrinsics: the
+    // last pass of `initial_model` retries with it the pairs whose two-view pose triangulated
+    // too few points (an uncalibrated pair's pose comes from `E = Kᵀ F K`, and a
+    // fundamental matrix fitted to few, noisy matches of a weakly textured scene can put
+    // every point behind a camera).
+    let given = if five_point {
+        None
+    } else {
+        pair.cam2_from_cam1
+    };
+    let Some(pose) = given.or_else(estimate) else {
+        return Ok(InitAttempt::Failed);
     };
     let mut b = Builder::new(ctx, used, (pair.image1, pair.image2));
     b.add_image(pair.image1, CamFromWorld(Rigid3::identity()));
@@ -1888,6 +1944,21 @@ fn try_initial_pair<'a>(
     // Triangulate with a permissive angle first; the pair is judged by the median angle.
     b.triangulation.min_angle_deg = 0.0;
     b.extend_and_triangulate(pair.image1);
+    tracing::debug!(
+        "initial pair {} {}: {} inliers, {} points triangulated ({} pose)",
+        pair.image1,
+        pair.image2,
+        pair.inliers.len(),
+        b.rec.points3d.len(),
+        if given.is_some() {
+            "two-view"
+        } else {
+            "five-point"
+        }
+    );
+    if b.rec.points3d.len() < min_points {
+        return Ok(InitAttempt::Failed);
+    }
     let angles: Vec<f64> = b
         .rec
         .points3d
@@ -1898,9 +1969,6 @@ fn try_initial_pair<'a>(
             ray_angle(&c1, &c2, &p.position.coords).to_degrees()
         })
         .collect();
-    if b.rec.points3d.len() < config.init_min_points {
-        return Ok(InitAttempt::Failed);
-    }
     let med = median(angles);
     if med < min_angle_deg {
         return Ok(InitAttempt::SmallAngle(med));
@@ -1908,7 +1976,7 @@ fn try_initial_pair<'a>(
     b.triangulation = config.triangulation.clone();
     b.global_ba(true)?;
     b.filter_points(None);
-    if b.rec.points3d.len() < config.init_min_points {
+    if b.rec.points3d.len() < min_points {
         return Ok(InitAttempt::Failed);
     }
     Ok(InitAttempt::Ok(b))
@@ -1998,41 +2066,77 @@ fn merge_overlapping_models(
     models: &mut Vec<Model>,
     progress: &dyn Progress,
 ) -> Result<(), MapperError> {
+    // Pairs of models (by their smallest image id) whose merge through matches was undone.
+    let mut refused: BTreeSet<(u32, u32)> = BTreeSet::new();
+    let key = |m: &Model| m.rec.images.keys().next().copied().unwrap_or(0);
     'merging: loop {
         models.sort_by_key(|m| std::cmp::Reverse(m.rec.images.len()));
         for i in 0..models.len() {
             for j in i + 1..models.len() {
+                let pair_key = (key(&models[i]), key(&models[j]));
+                if refused.contains(&pair_key) {
+                    continue;
+                }
                 let merged = ctx.timed(Phase::MergeModels, || {
                     let (a, b) = (&models[i].rec, &models[j].rec);
-                    merge_models(a, b, &ctx.tracks, ctx.config).or_else(|| {
-                        if !ctx.config.merge_through_matches {
-                            return None;
-                        }
-                        let (a_from_b, n) =
-                            similarity_through_matches(&ctx.input.pairs, a, b, ctx.config)?;
-                        tracing::debug!(
-                            "models of {} and {} images merged through {n} connecting 2D-3D correspondences",
-                            a.images.len(),
-                            b.images.len()
-                        );
-                        Some(join_models(a, b, &a_from_b))
-                    })
+                    if let Some(rec) = merge_models(a, b, &ctx.tracks, ctx.config) {
+                        return Some((rec, false));
+                    }
+                    if !ctx.config.merge_through_matches {
+                        return None;
+                    }
+                    let (a_from_b, n) =
+                        similarity_through_matches(&ctx.input.pairs, a, b, ctx.config)?;
+                    tracing::debug!(
+                        "models of {} and {} images merged through {n} connecting 2D-3D correspondences",
+                        a.images.len(),
+                        b.images.len()
+                    );
+                    Some((join_models(a, b, &a_from_b), true))
                 });
-                let Some(rec) = merged else {
+                let Some((rec, through_matches)) = merged else {
                     continue;
                 };
-                models.remove(j);
+                let sides: [BTreeSet<u32>; 2] =
+                    [&models[i], &models[j]].map(|m| m.rec.images.keys().copied().collect());
                 let others: BTreeSet<u32> = models
                     .iter()
                     .enumerate()
-                    .filter(|(k, _)| *k != i)
+                    .filter(|(k, _)| *k != i && *k != j)
                     .flat_map(|(_, m)| m.rec.images.keys().copied())
                     .collect();
                 let gauge = models[i].gauge;
                 let mut b = Builder::from_model(ctx, &others, Model { rec, gauge });
                 b.global_refinement(false)?;
+                if through_matches {
+                    let (consistent, total) = join_consistency(
+                        &b.rec,
+                        &ctx.input.pairs,
+                        &sides[0],
+                        &sides[1],
+                        ctx.config.filter_max_error_px,
+                    );
+                    let fraction = consistent as f64 / total.max(1) as f64;
+                    tracing::debug!(
+                        "merge through matches of {} and {} images: after adjustment {consistent} of {total} connecting correspondences consistent",
+                        sides[0].len(),
+                        sides[1].len()
+                    );
+                    if fraction < ctx.config.merge_min_consistent_fraction {
+                        tracing::info!(
+                            "merge of models of {} and {} images undone: after adjustment only {consistent} of {total} connecting correspondences ({:.0}%) are consistent",
+                            sides[0].len(),
+                            sides[1].len(),
+                            100.0 * fraction
+                        );
+                        refused.insert(pair_key);
+                        continue;
+                    }
+                }
                 grow(&mut b, progress)?;
-                models[i] = b.into_model();
+                let model = b.into_model();
+                models.remove(j);
+                models[i] = model;
                 continue 'merging;
             }
         }
@@ -2442,6 +2546,106 @@ mod tests {
         let sizes: Vec<usize> = out.models.iter().map(|m| m.images.len()).collect();
         assert_eq!(sizes, [8, 6]);
         assert!(out.models[1].images.keys().all(|&id| id > 100));
+    }
+
+    /// Two unrelated sets (8 and 6 images) joined by a "repeated structure": in three
+    /// pairs between them, 12 matches each from points of the first set to new keypoints of
+    /// the second, placed where a similarity (scale 1.3, 40 degrees) would project them, as a
+    /// facade repeated on another building gives, and 12 chance matches each. The RANSAC of
+    /// the merge through matches accepts that similarity (its 36 correspondences are a third
+    /// of the connecting ones, over the 25% it asks); after the merged model's adjustment only
+    /// those stay consistent (72 of 144 both ways, once the completion gave the new keypoints
+    /// their points), under the 60% asked, and the merge is undone: two models.
+    #[test]
+    fn repeated_structure_between_unrelated_sets_is_not_merged() {
+        let (a, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 8,
+            points: 500,
+            noise_px: 0.3,
+            seed: 1,
+            ..Default::default()
+        });
+        let (b, _) = synthetic_reconstruction(&SyntheticConfig {
+            cameras: 6,
+            points: 500,
+            noise_px: 0.3,
+            seed: 2,
+            ..Default::default()
+        });
+        let mut ia = input_from_tracks(&a);
+        let ib = input_from_tracks(&b);
+        let mut cam = ib.cameras[&1].clone();
+        cam.id = 2;
+        ia.cameras.insert(2, cam.clone());
+        for mut im in ib.images {
+            im.id += 100;
+            im.camera_id = 2;
+            im.name = format!("b_{}", im.name);
+            ia.images.push(im);
+        }
+        for mut p in ib.pairs {
+            p.image1 += 100;
+            p.image2 += 100;
+            ia.pairs.push(p);
+        }
+        let b_from_a = Sim3 {
+            scale: 1.3,
+            rotation: UnitQuaternion::from_scaled_axis(
+                Vector3::new(0.3, 0.5, 0.2).normalize() * 40f64.to_radians(),
+            ),
+            translation: Vector3::new(0.2, -0.1, 0.1),
+        }
+        .inverse();
+        let mut rng = Rng::new(9);
+        for (x, y) in [(1u32, 101u32), (2, 102), (3, 103)] {
+            let ya = &b.images[&(y - 100)];
+            let xa = &a.images[&x];
+            let iy = ia.images.iter().position(|im| im.id == y).unwrap();
+            let mut matches = Vec::new();
+            for (kx, pid) in xa.point3d_ids.iter().enumerate() {
+                if matches.len() == 12 {
+                    break;
+                }
+                let Some(pid) = pid else { continue };
+                let xb = b_from_a.apply(&a.points3d[pid].position);
+                let xc = ya.cam_from_world.0.rotation * xb.coords + ya.cam_from_world.0.translation;
+                let Some(q) = (xc.z > 0.0)
+                    .then(|| cam.image_from_cam(&xc.into()))
+                    .flatten()
+                else {
+                    continue;
+                };
+                if q.x < 0.0 || q.y < 0.0 || q.x > cam.width as f64 || q.y > cam.height as f64 {
+                    continue;
+                }
+                ia.images[iy].keypoints.push(q);
+                matches.push([kx as u32, ia.images[iy].keypoints.len() as u32 - 1]);
+            }
+            assert_eq!(matches.len(), 12);
+            let nx = xa.keypoints.len();
+            let ny = ya.keypoints.len();
+            for _ in 0..12 {
+                matches.push([rng.below(nx) as u32, rng.below(ny) as u32]);
+            }
+            ia.pairs.push(MapperPair {
+                image1: x,
+                image2: y,
+                homography: false,
+                cam2_from_cam1: None,
+                inliers: matches,
+            });
+        }
+        let sizes = |c: &MapperConfig| -> Vec<usize> {
+            let out = map(&ia, c, &NoProgress).unwrap();
+            out.models.iter().map(|m| m.images.len()).collect()
+        };
+        // Without the check after adjustment the similarity's RANSAC merges the two sets.
+        let unchecked = MapperConfig {
+            merge_min_consistent_fraction: 0.0,
+            ..config()
+        };
+        assert_eq!(sizes(&unchecked), [14]);
+        assert_eq!(sizes(&config()), [8, 6]);
     }
 
     /// Cameras that only rotate about one centre: reported as degenerate (no parallax), and

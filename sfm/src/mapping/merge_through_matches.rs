@@ -347,6 +347,62 @@ pub(crate) fn similarity_through_matches(
         .then_some((sim, n))
 }
 
+/// How well a merged model explains the matches across the join: for every verified pair
+/// between an image of `side_a` and one of `side_b` and each of its matches, each keypoint
+/// holding a 3D point gives a correspondence, consistent when the point reprojects within
+/// `max_error_px` of the other keypoint. Returns (consistent, total); the mapper undoes a
+/// merge through matches whose fraction after adjustment is below
+/// `MapperConfig::merge_min_consistent_fraction`.
+pub(crate) fn join_consistency(
+    merged: &Reconstruction,
+    pairs: &[MapperPair],
+    side_a: &BTreeSet<u32>,
+    side_b: &BTreeSet<u32>,
+    max_error_px: f64,
+) -> (usize, usize) {
+    let (mut consistent, mut total) = (0, 0);
+    for p in pairs {
+        let across = (side_a.contains(&p.image1) && side_b.contains(&p.image2))
+            || (side_b.contains(&p.image1) && side_a.contains(&p.image2));
+        let (Some(im1), Some(im2)) = (merged.images.get(&p.image1), merged.images.get(&p.image2))
+        else {
+            continue;
+        };
+        if !across {
+            continue;
+        }
+        for m in &p.inliers {
+            for (source, ks, observer, ko) in [(im1, m[0], im2, m[1]), (im2, m[1], im1, m[0])] {
+                let Some(Some(pid)) = source.point3d_ids.get(ks as usize) else {
+                    continue;
+                };
+                let (Some(point), Some(px)) = (
+                    merged.points3d.get(pid),
+                    observer.keypoints.get(ko as usize),
+                ) else {
+                    continue;
+                };
+                total += 1;
+                let pose = &observer.cam_from_world.0;
+                let xc = pose.rotation * point.position.coords + pose.translation;
+                if xc.z <= 0.0 {
+                    continue;
+                }
+                let Some(camera) = merged.cameras.get(&observer.camera_id) else {
+                    continue;
+                };
+                if camera
+                    .image_from_cam(&xc.into())
+                    .is_some_and(|q| (q.coords - px.coords).norm() <= max_error_px)
+                {
+                    consistent += 1;
+                }
+            }
+        }
+    }
+    (consistent, total)
+}
+
 /// Model `b` moved into model `a`'s frame by `a_from_b` and added to it: its cameras (those
 /// `a` lacks), images and points (as new points; tracks both models triangulated are merged
 /// afterwards by the mapper's completion and merging).

@@ -4,7 +4,10 @@
 //! - [`load_mapper_input`]: `images.json` + feature files + match file -> [`MapperInput`]:
 //!   cameras grouped as COLMAP's camera modes do (`Auto`: one camera per photo size, EXIF
 //!   make/model and focal prior; `Single`; `PerImage`), initialised from the focal priors,
-//!   keypoint colours sampled from the photos;
+//!   keypoint colours sampled from the photos; a camera without a focal prior (the
+//!   1.2 x max(w, h) default) starts from the focal length of its pairs' fundamental matrices
+//!   (`focal_from_f.rs`) when that differs from the default by more than the tolerance, and
+//!   its pairs' relative poses (derived under the default) are then estimated again;
 //! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional silhouette constraints
 //!   (`silhouette.rs`, followed by a global adjustment), then the models are written to
 //!   `<ws>/sparse/0` (the largest), `<ws>/sparse/1`, ... (COLMAP text, each folder replaced as a
@@ -28,6 +31,7 @@ use serde::Serialize;
 use crate::bundle::silhouette::{SilhouetteConfig, add_silhouette_points, lift_contour_points};
 use crate::bundle::{BundleError, BundleSetup, bundle_adjust, intrinsics_covariance};
 use crate::evaluate::mean_reprojection_error;
+use crate::focal_from_f::{FocalEstimate, FocalFromFConfig, estimate_focal};
 use crate::focal_prior::FocalSource;
 use crate::geometry::two_view::PairKind;
 use crate::mapping::mapper::{
@@ -65,6 +69,9 @@ pub struct SfmConfig {
     /// Sample keypoint colours from the photos (default true; false: grey points).
     /// Default: `true`.
     pub colours: bool,
+    /// The focal length of cameras without a prior from fundamental matrices (on by
+    /// default). Default: `FocalFromFConfig::default()`.
+    pub focal_from_f: FocalFromFConfig,
 }
 
 impl Default for SfmConfig {
@@ -76,6 +83,7 @@ impl Default for SfmConfig {
             masks: None,
             silhouette: SilhouetteConfig::default(),
             colours: true,
+            focal_from_f: FocalFromFConfig::default(),
         }
     }
 }
@@ -84,6 +92,25 @@ impl SfmConfig {
     /// Each field within its meaningful range, else the [`ConfigError`] naming it.
     pub fn check(&self) -> Result<(), ConfigError> {
         self.mapper.check().map_err(|e| e.within("mapper"))?;
+        let f = &self.focal_from_f;
+        fresco_core::config::require(
+            f.tolerance.is_finite() && f.tolerance >= 0.0,
+            "focal_from_f.tolerance",
+            f.tolerance,
+            "finite and >= 0",
+        )?;
+        fresco_core::config::require(
+            f.min_dip.is_finite() && f.min_dip >= 0.0,
+            "focal_from_f.min_dip",
+            f.min_dip,
+            "finite and >= 0",
+        )?;
+        fresco_core::config::require(
+            f.max_spread.is_finite() && f.max_spread >= 0.0,
+            "focal_from_f.max_spread",
+            f.max_spread,
+            "finite and >= 0",
+        )?;
         self.silhouette.check().map_err(|e| e.within("silhouette"))
     }
 }
@@ -131,9 +158,14 @@ pub struct Unregistered {
 pub struct FocalPriorSummary {
     /// The focal length the mapper started from, pixels.
     pub focal_px: f64,
-    /// Its source: calibration file, EXIF, or the 1.2 x max(w, h) default (the first
-    /// photo's, by id, of the camera's photos).
+    /// Its source: calibration file, EXIF, the 1.2 x max(w, h) default (the first photo's,
+    /// by id, of the camera's photos), or "F-estimate" when the focal length from the
+    /// fundamental matrices replaced the default.
     pub source: FocalSource,
+    /// For a camera without a prior: the focal length from the fundamental matrices of its
+    /// pairs, whether or not it replaced the default (None: too few well-conditioned pairs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub f_estimate: Option<FocalEstimate>,
 }
 
 /// What [`run_sfm`] did; the main model is the first (largest) one.
@@ -239,13 +271,119 @@ fn keypoint_colours(image: &ImageEntry, keypoints: &[Point2<f64>]) -> Vec<[u8; 3
         .collect()
 }
 
+/// The focal length from fundamental matrices of each camera whose photos all lack a prior
+/// (see the module documentation); the camera's focal length and the pairs' relative poses
+/// are replaced when the estimate differs from the default by more than the tolerance.
+/// Returns the estimates by camera id, with whether each replaced the default.
+fn apply_focal_from_f(
+    input: &mut MapperInput,
+    list: &[ImageEntry],
+    config: &FocalFromFConfig,
+) -> BTreeMap<u32, (FocalEstimate, bool)> {
+    let mut out = BTreeMap::new();
+    if !config.enabled {
+        return out;
+    }
+    let camera_of: HashMap<u32, u32> = input
+        .images
+        .iter()
+        .map(|im| (im.id, im.camera_id))
+        .collect();
+    let index: HashMap<u32, usize> = input
+        .images
+        .iter()
+        .enumerate()
+        .map(|(k, im)| (im.id, k))
+        .collect();
+    let without_prior: BTreeSet<u32> = input
+        .cameras
+        .keys()
+        .copied()
+        .filter(|cid| {
+            list.iter()
+                .filter(|im| camera_of.get(&im.id) == Some(cid))
+                .all(|im| im.prior.source == FocalSource::Default)
+        })
+        .collect();
+    for &cid in &without_prior {
+        let mut pairs: Vec<&MapperPair> = input
+            .pairs
+            .iter()
+            .filter(|p| !p.homography && camera_of[&p.image1] == cid && camera_of[&p.image2] == cid)
+            .collect();
+        pairs.sort_by(|a, b| {
+            b.inliers
+                .len()
+                .cmp(&a.inliers.len())
+                .then((a.image1, a.image2).cmp(&(b.image1, b.image2)))
+        });
+        // The strongest pairs only: `estimate_focal` uses at most `max_pairs` of them.
+        pairs.truncate(config.max_pairs);
+        let points: Vec<Vec<(Point2<f64>, Point2<f64>)>> = pairs
+            .iter()
+            .map(|p| {
+                let (k1, k2) = (
+                    &input.images[index[&p.image1]].keypoints,
+                    &input.images[index[&p.image2]].keypoints,
+                );
+                p.inliers
+                    .iter()
+                    .map(|m| (k1[m[0] as usize], k2[m[1] as usize]))
+                    .collect()
+            })
+            .collect();
+        let camera = &input.cameras[&cid];
+        let [cx, cy] = camera.model.principal_point_idxs();
+        let Some(estimate) = estimate_focal(
+            &points,
+            Point2::new(camera.params[cx], camera.params[cy]),
+            f64::from(camera.width.max(camera.height)),
+            config,
+        ) else {
+            continue;
+        };
+        let default = camera.focal();
+        let replace = (estimate.focal_px / default).ln().abs() > (1.0 + config.tolerance).ln();
+        tracing::info!(
+            "camera {cid}: focal length from {} of {} fundamental matrices {:.1} px, default {:.1} px{}",
+            estimate.pairs_used,
+            estimate.pairs_tried,
+            estimate.focal_px,
+            default,
+            if replace {
+                ": used"
+            } else {
+                ": kept the default"
+            }
+        );
+        if replace {
+            let camera = input.cameras.get_mut(&cid).expect("camera of the list");
+            for &k in camera.model.focal_idxs() {
+                camera.params[k] = estimate.focal_px;
+            }
+            for p in &mut input.pairs {
+                if camera_of[&p.image1] == cid || camera_of[&p.image2] == cid {
+                    p.cam2_from_cam1 = None;
+                }
+            }
+        }
+        out.insert(cid, (estimate, replace));
+    }
+    out
+}
+
+/// Focal estimates by camera id (from fundamental matrices), with whether each replaced the
+/// camera's default focal length.
+pub type FocalEstimates = BTreeMap<u32, (FocalEstimate, bool)>;
+
 /// Reads a workspace into the mapper's input (see the module documentation). Also returns
-/// whether every camera came from a calibration file (then the mapper treats them as known).
+/// whether every camera came from a calibration file (then the mapper treats them as known),
+/// and the focal estimates from fundamental matrices of the cameras without a prior.
 pub fn load_mapper_input(
     ws: &Path,
     config: &SfmConfig,
     progress: &dyn Progress,
-) -> Result<(MapperInput, bool), SfmError> {
+) -> Result<(MapperInput, bool, FocalEstimates), SfmError> {
     let list = read_images(ws)?;
     if list.images.is_empty() {
         return Err(SfmError::Workspace {
@@ -366,14 +504,13 @@ pub fn load_mapper_input(
             inliers: g.inliers,
         });
     }
-    Ok((
-        MapperInput {
-            cameras,
-            images,
-            pairs,
-        },
-        calibrated,
-    ))
+    let mut input = MapperInput {
+        cameras,
+        images,
+        pairs,
+    };
+    let estimates = apply_focal_from_f(&mut input, &list.images, &config.focal_from_f);
+    Ok((input, calibrated, estimates))
 }
 
 /// The mask of `name` in `dir`, if one of the accepted names exists.
@@ -549,7 +686,7 @@ pub fn run_sfm(
 ) -> Result<SfmSummary, SfmError> {
     config.check()?;
     let t0 = Instant::now();
-    let (input, calibrated) = load_mapper_input(ws, config, progress)?;
+    let (input, calibrated, estimates) = load_mapper_input(ws, config, progress)?;
     let seconds_load = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let mut mapper = config.mapper.clone();
@@ -645,12 +782,17 @@ pub fn run_sfm(
         if let (Some(camera), Some(&source)) =
             (input.cameras.get(&im.camera_id), source_of.get(&im.name))
         {
-            focal_priors
-                .entry(im.camera_id)
-                .or_insert_with(|| FocalPriorSummary {
+            focal_priors.entry(im.camera_id).or_insert_with(|| {
+                let estimate = estimates.get(&im.camera_id);
+                FocalPriorSummary {
                     focal_px: camera.focal(),
-                    source,
-                });
+                    source: match estimate {
+                        Some((_, true)) => FocalSource::FEstimate,
+                        _ => source,
+                    },
+                    f_estimate: estimate.map(|e| e.0.clone()),
+                }
+            });
         }
     }
     Ok(SfmSummary {
