@@ -18,8 +18,17 @@
 //! 3. Without a given density, the density that fills one atlas is found by packing into a
 //!    strip of the atlas' width and rescaling by the square root of width / used height
 //!    (a few rounds; the gutter does not scale, hence the iteration), then a bisection.
-//!    Atlases above 1024 texels search the density at 1024 (gutter scaled alike) and pack
-//!    once at full resolution, shrinking by 3% while that does not fit.
+//!    Atlases of k x 1024 texels are packed at 1024 with the gutter divided by k (rounded
+//!    up) and the placement scaled by k: each chart stays inside the k x k blocks of its
+//!    conservative raster, so the charts keep at least the full gutter. Other sizes above
+//!    1024 search the density at 1024 and pack once at full resolution, shrinking by 3%
+//!    while that does not fit.
+//! 4. The search is exact but avoids rescanning: each orientation's search starts at the
+//!    lowest row where its core rectangle (the largest solid rectangle inside its dilated
+//!    texels) fits, and the lowest free position of each rectangle size is remembered for
+//!    the whole placement (occupancy only grows, so positions before it stay blocked);
+//!    within a row, only columns where the chart's longest span lies on a free run are
+//!    tested. Same positions as a scan from the top (a test compares them with brute force).
 
 use fresco_core::config::{ConfigError, require};
 use fresco_core::nalgebra::{Matrix2, Point2, Vector2};
@@ -123,8 +132,25 @@ pub fn pack(charts: &[ChartShape], cfg: &PackConfig) -> Result<Packing, ParamErr
         let (tpu, rasters, placements) = search_density(charts, &base, total, w, cfg.gutter)?;
         return Ok(finish(placements, 1, tpu, &base, &rasters));
     }
-    // Large atlas: the density is searched at SEARCH_SIZE (gutter scaled alike), then the
-    // charts are packed once at full resolution, shrinking by 3% while they do not fit.
+    if w.is_multiple_of(SEARCH_SIZE) {
+        // Large atlas, a multiple k of SEARCH_SIZE: the charts are packed at SEARCH_SIZE with
+        // the gutter divided by k (rounded up) and the placement is scaled by k. Every chart
+        // stays inside the k x k blocks of its conservative raster there, so the charts stay
+        // apart by at least k times that gutter, not less than `gutter`.
+        let k = w / SEARCH_SIZE;
+        let (tpu, rasters, placements) =
+            search_density(charts, &base, total, SEARCH_SIZE, cfg.gutter.div_ceil(k))?;
+        let mut packing = finish(placements, 1, tpu, &base, &rasters);
+        let k = f64::from(k);
+        for p in &mut packing.placements {
+            p.linear *= k;
+            p.offset *= k;
+        }
+        packing.texels_per_unit *= k;
+        return Ok(packing);
+    }
+    // Other large atlases: the density is searched at SEARCH_SIZE (gutter scaled alike), then
+    // the charts are packed once at full resolution, shrinking by 3% while they do not fit.
     let k = w as f64 / SEARCH_SIZE as f64;
     let g = if cfg.gutter == 0 {
         0
@@ -358,6 +384,21 @@ struct Oriented {
     spans: Vec<Vec<(u32, u32)>>,
     /// Longest span of each dilated row.
     longest: Vec<u32>,
+    /// A solid rectangle inside the dilated spans (see [`core_rectangle`]): where no free
+    /// rectangle of that size exists, the chart cannot go either.
+    core: Core,
+    /// The longest dilated span (row, lo, hi): candidate columns are those where it lies on
+    /// a free run of the atlas row below it.
+    anchor: (u32, u32, u32),
+}
+
+/// A solid rectangle of `width` x `height` texels inside a chart's dilated spans, its top
+/// row `row` rows below the chart's dilated top.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Core {
+    width: u32,
+    height: u32,
+    row: u32,
 }
 
 impl Oriented {
@@ -400,13 +441,114 @@ impl Oriented {
             longest.push(merged.iter().map(|(a, b)| b - a + 1).max().unwrap_or(0));
             spans.push(merged);
         }
+        let core = core_rectangle(&spans, width + 2 * gutter);
+        let anchor = longest_span(&spans);
         Oriented {
             width,
             height,
             runs,
             spans,
             longest,
+            core,
+            anchor,
         }
+    }
+
+    /// A solid `width` x `height` rectangle (gutter 0), for the free-rectangle searches.
+    fn rectangle(width: u32, height: u32) -> Oriented {
+        Oriented {
+            width,
+            height,
+            runs: Vec::new(),
+            spans: vec![vec![(0, width - 1)]; height as usize],
+            longest: vec![width; height as usize],
+            core: Core {
+                width,
+                height,
+                row: 0,
+            },
+            anchor: (0, 0, width - 1),
+        }
+    }
+}
+
+/// The longest span of `spans` as (row, lo, hi); the first of equals.
+fn longest_span(spans: &[Vec<(u32, u32)>]) -> (u32, u32, u32) {
+    let mut best = (0, 0, 0);
+    let mut len = 0;
+    for (r, row) in spans.iter().enumerate() {
+        for &(lo, hi) in row {
+            if hi - lo + 1 > len {
+                len = hi - lo + 1;
+                best = (r as u32, lo, hi);
+            }
+        }
+    }
+    best
+}
+
+/// The largest-area solid rectangle inside `spans` (rows of merged runs over `width`
+/// columns; histogram of covered heights per column, then the largest rectangle under each
+/// row's histogram by a stack), its sides rounded down to 8 steps per octave above 16 so
+/// that charts of similar sizes share the searches of [`Bitmap::lowest_rectangle`].
+fn core_rectangle(spans: &[Vec<(u32, u32)>], width: u32) -> Core {
+    let mut heights = vec![0u32; width as usize + 1];
+    let mut best = Core {
+        width: 0,
+        height: 0,
+        row: 0,
+    };
+    let mut stack: Vec<(u32, u32)> = Vec::new();
+    for (r, row) in spans.iter().enumerate() {
+        let mut c = 0u32;
+        for &(a, b) in row {
+            for h in &mut heights[c as usize..a as usize] {
+                *h = 0;
+            }
+            for h in &mut heights[a as usize..=b as usize] {
+                *h += 1;
+            }
+            c = b + 1;
+        }
+        for h in &mut heights[c as usize..width as usize] {
+            *h = 0;
+        }
+        // heights[width] stays 0: a sentinel that empties the stack.
+        stack.clear();
+        for (col, &h) in heights.iter().enumerate() {
+            let mut start = col as u32;
+            while let Some(&(s, sh)) = stack.last() {
+                if sh < h {
+                    break;
+                }
+                stack.pop();
+                let area = u64::from(sh) * u64::from(col as u32 - s);
+                if area > u64::from(best.width) * u64::from(best.height) {
+                    best = Core {
+                        width: col as u32 - s,
+                        height: sh,
+                        row: r as u32 + 1 - sh,
+                    };
+                }
+                start = s;
+            }
+            if h > 0 {
+                stack.push((start, h));
+            }
+        }
+    }
+    let round = |v: u32| {
+        if v <= 16 {
+            v
+        } else {
+            let step = 1u32 << (31 - v.leading_zeros() - 3);
+            v / step * step
+        }
+    };
+    Core {
+        width: round(best.width),
+        height: round(best.height),
+        row: best.row,
     }
 }
 
@@ -504,6 +646,8 @@ struct Bitmap {
     run: Vec<u32>,
     /// Lowest row that can still hold anything (rows above it are full).
     used_height: u32,
+    /// Remembered free-rectangle positions (row, column) per size; `None`: nowhere.
+    rectangles: std::collections::HashMap<(u32, u32), Option<(u32, u32)>>,
 }
 
 impl Bitmap {
@@ -515,6 +659,7 @@ impl Bitmap {
             bits: vec![0; words * height as usize],
             run: vec![width; height as usize],
             used_height: 0,
+            rectangles: Default::default(),
         }
     }
 
@@ -543,31 +688,47 @@ impl Bitmap {
 
     /// Longest run of clear bits in row `y` (word at a time over the runs).
     fn longest_free_run(&self, y: u32) -> u32 {
-        let row = &self.bits[y as usize * self.words..(y as usize + 1) * self.words];
-        let bit = |c: u32| row[(c / 64) as usize] >> (c % 64) & 1 == 1;
-        // Next column >= c whose bit equals `set`, or the width.
-        let next = |mut c: u32, set: bool| -> u32 {
-            while c < self.width {
-                let w = row[(c / 64) as usize];
-                let w = (if set { w } else { !w }) >> (c % 64);
-                if w != 0 {
-                    return (c + w.trailing_zeros()).min(self.width);
-                }
-                c = (c / 64 + 1) * 64;
-            }
-            self.width
-        };
         let (mut best, mut c) = (0, 0);
         while c < self.width {
-            let start = if bit(c) { next(c, false) } else { c };
+            let start = self.next_bit(y, c, false);
             if start >= self.width {
                 break;
             }
-            let end = next(start, true);
+            let end = self.next_bit(y, start, true);
             best = best.max(end - start);
             c = end;
         }
         best
+    }
+
+    /// Next column >= `c` of row `y` whose bit equals `set` (a word at a time), or the width.
+    fn next_bit(&self, y: u32, mut c: u32, set: bool) -> u32 {
+        let row = &self.bits[y as usize * self.words..(y as usize + 1) * self.words];
+        while c < self.width {
+            let w = row[(c / 64) as usize];
+            let w = (if set { w } else { !w }) >> (c % 64);
+            if w != 0 {
+                return (c + w.trailing_zeros()).min(self.width);
+            }
+            c = (c / 64 + 1) * 64;
+        }
+        self.width
+    }
+
+    /// First column >= `from` of row `y` that starts `len` free texels, if any.
+    fn next_free_run(&self, y: u32, from: u32, len: u32) -> Option<u32> {
+        let mut c = from;
+        loop {
+            let start = self.next_bit(y, c, false);
+            if start + len > self.width {
+                return None;
+            }
+            let end = self.next_bit(y, start, true);
+            if end - start >= len {
+                return Some(start);
+            }
+            c = end;
+        }
     }
 
     fn set_run(&mut self, y: u32, a: u32, b: u32) {
@@ -577,9 +738,19 @@ impl Bitmap {
         }
     }
 
-    /// First position (lowest row, then column) where the dilated chart `o` fits, with its
-    /// row at most `max_y`.
-    fn find(&self, o: &Oriented, gutter: u32, max_y: u32) -> Option<(u32, u32)> {
+    /// First position (lowest row, then column) at or after (`x0`, `y0`) in that order where
+    /// the dilated chart `o` fits, with its row at most `max_y`. With `stride`, charts taller
+    /// than 128 texels step rows by 1/64 of their height from `y0` (see the end of the loop).
+    #[allow(clippy::too_many_arguments)]
+    fn find_from(
+        &self,
+        o: &Oriented,
+        gutter: u32,
+        y0: u32,
+        x0: u32,
+        max_y: u32,
+        stride: bool,
+    ) -> Option<(u32, u32)> {
         let dh = o.spans.len() as u32;
         let dw = o.width + 2 * gutter;
         if dw > self.width || dh > self.height() {
@@ -593,8 +764,10 @@ impl Bitmap {
         // whose rows include it are skipped at once (full rows cost one test, not dh).
         let narrowest = o.longest.iter().copied().min().unwrap_or(0);
         let solid = narrowest > 0;
-        let mut y = 0u32;
+        let mut y = y0;
+        let mut x_start = x0;
         'rows: while y + dh <= self.height() && y <= max_y {
+            let mut x = std::mem::take(&mut x_start);
             // Quick reject: a row whose longest free run is shorter than a span of the chart's.
             for (r, &need) in o.longest.iter().enumerate() {
                 if self.run[y as usize + r] < need {
@@ -606,8 +779,16 @@ impl Bitmap {
                     continue 'rows;
                 }
             }
-            let mut x = 0u32;
+            let (ar, alo, ahi) = o.anchor;
             'cols: while x + dw <= self.width {
+                // Skip to where the longest span lies on free texels.
+                match self.next_free_run(y + ar, x + alo, ahi - alo + 1) {
+                    Some(c) => x = c - alo,
+                    None => break,
+                }
+                if x + dw > self.width {
+                    break;
+                }
                 let rows = std::iter::once(hot).chain((0..o.spans.len()).filter(|&r| r != hot));
                 for r in rows {
                     for &(lo, hi) in &o.spans[r] {
@@ -623,9 +804,44 @@ impl Bitmap {
             // Rows one at a time for small charts; tall charts (large atlases) step by 1/64
             // of their height, which wastes at most that much above them and divides the
             // search by the stride.
-            y += (dh / 64).max(1);
+            y += if stride { (dh / 64).max(1) } else { 1 };
         }
         None
+    }
+
+    /// Lowest row holding a free `width` x `height` rectangle (`None`: none anywhere). The
+    /// answer is remembered per size: occupancy only grows, so every position before the
+    /// remembered one, in row-then-column order, stays blocked, and the next search for
+    /// that size starts at the remembered position.
+    fn lowest_rectangle(&mut self, width: u32, height: u32) -> Option<u32> {
+        if width == 0 || height == 0 {
+            return Some(0);
+        }
+        let (y0, x0) = match self.rectangles.get(&(width, height)) {
+            Some(None) => return None,
+            Some(Some(p)) => *p,
+            None => (0, 0),
+        };
+        let rect = Oriented::rectangle(width, height);
+        let found = self
+            .find_from(&rect, 0, y0, x0, u32::MAX, false)
+            .map(|(x, y)| (y, x));
+        self.rectangles.insert((width, height), found);
+        found.map(|(y, _)| y)
+    }
+
+    /// First position (lowest row, then column) where the dilated chart `o` fits, with its
+    /// row at most `max_y` (the search starts where its core rectangle first fits).
+    fn find(&mut self, o: &Oriented, gutter: u32, max_y: u32) -> Option<(u32, u32)> {
+        let c = o.core;
+        let lowest = self.lowest_rectangle(c.width, c.height)?;
+        let y0 = lowest.saturating_sub(c.row);
+        if y0 > max_y {
+            return None;
+        }
+        // Tall charts step rows from 0 (`find_from`): only the answer "nowhere" is used.
+        let tall = o.spans.len() >= 128;
+        self.find_from(o, gutter, if tall { 0 } else { y0 }, 0, max_y, true)
     }
 
     fn insert(&mut self, o: &Oriented, gutter: u32, x: u32, y: u32) {
@@ -653,6 +869,21 @@ fn place(
     height: u32,
     strip: bool,
 ) -> Result<(Vec<Spot>, u32, u32), ParamError> {
+    place_with(rasters, width, height, strip, Bitmap::find)
+}
+
+/// First fit of an orientation in an atlas: (atlas, chart, gutter, max_y) -> (x, y).
+type Search = fn(&mut Bitmap, &Oriented, u32, u32) -> Option<(u32, u32)>;
+
+/// [`place`] with the search as a parameter (the tests compare [`Bitmap::find`] with a plain
+/// scan from the top).
+fn place_with(
+    rasters: &[Raster],
+    width: u32,
+    height: u32,
+    strip: bool,
+    search: Search,
+) -> Result<(Vec<Spot>, u32, u32), ParamError> {
     let mut order: Vec<usize> = (0..rasters.len()).collect();
     // Largest first: by longer side, then area (deterministic ties by index).
     order.sort_by(|&a, &b| {
@@ -661,7 +892,7 @@ fn place(
         let kb = (rb.width.max(rb.height), rb.area);
         kb.cmp(&ka).then(a.cmp(&b))
     });
-    let best_in = |atlas: &Bitmap, r: &Raster| -> Option<((u32, u32), u8)> {
+    let best_in = |atlas: &mut Bitmap, r: &Raster| -> Option<((u32, u32), u8)> {
         // (position, quarter turns, (bottom edge, x)).
         type Candidate = ((u32, u32), u8, (u32, u32));
         let mut best: Option<Candidate> = None;
@@ -673,7 +904,7 @@ fn place(
                 Some(b) => b.2.0 - dh,
                 None => u32::MAX,
             };
-            if let Some((x, y)) = atlas.find(o, r.gutter, max_y) {
+            if let Some((x, y)) = search(atlas, o, r.gutter, max_y) {
                 let key = (y + o.spans.len() as u32, x);
                 if best.as_ref().is_none_or(|b| key < b.2) {
                     best = Some(((x, y), k as u8, key));
@@ -692,7 +923,7 @@ fn place(
             atlas: width,
         };
         let mut placed = None;
-        for (k, atlas) in atlases.iter().enumerate() {
+        for (k, atlas) in atlases.iter_mut().enumerate() {
             if let Some(p) = best_in(atlas, r) {
                 placed = Some((k, p));
                 break;
@@ -701,8 +932,8 @@ fn place(
         let (k, ((x, y), t)) = match placed {
             Some(p) => p,
             None if !strip => {
-                let fresh = Bitmap::new(width, height);
-                let p = best_in(&fresh, r).ok_or_else(too_large)?;
+                let mut fresh = Bitmap::new(width, height);
+                let p = best_in(&mut fresh, r).ok_or_else(too_large)?;
                 atlases.push(fresh);
                 (atlases.len() - 1, p)
             }
@@ -801,5 +1032,153 @@ mod tests {
             }
         }
         assert!(p.atlases >= 2);
+    }
+
+    /// A chart's UVs and triangles.
+    type Chart = (Vec<Point2<f64>>, Vec<[u32; 3]>);
+
+    /// Random charts: fans of 3 to 9 vertices around a centre with radii 0.3 to 1 (convex
+    /// and concave), sizes over a decade.
+    fn random_charts(n: usize, seed: u64) -> Vec<Chart> {
+        let mut rng = fresco_core::Rng::new(seed);
+        (0..n)
+            .map(|_| {
+                let size = 1.0 + 9.0 * rng.uniform() * rng.uniform();
+                let stretch = 0.3 + 0.7 * rng.uniform();
+                let k = 3 + (rng.uniform() * 7.0) as usize;
+                let mut uv = vec![Point2::new(0.0, 0.0)];
+                for j in 0..k {
+                    let a = std::f64::consts::TAU * (j as f64 + 0.3 * rng.uniform()) / k as f64;
+                    let r = size * (0.3 + 0.7 * rng.uniform());
+                    uv.push(Point2::new(r * a.cos(), stretch * r * a.sin()));
+                }
+                let faces = (0..k as u32)
+                    .map(|j| [0, 1 + j, 1 + (j + 1) % k as u32])
+                    .collect();
+                (uv, faces)
+            })
+            .collect()
+    }
+
+    fn shapes(charts: &[Chart]) -> Vec<ChartShape<'_>> {
+        charts
+            .iter()
+            .map(|(uv, f)| ChartShape {
+                uv,
+                faces: f,
+                area: f
+                    .iter()
+                    .map(|t| crate::metrics::signed_area(t.map(|v| uv[v as usize])).abs())
+                    .sum(),
+            })
+            .collect()
+    }
+
+    /// The first fit by brute force: every row from the top, every column, every span.
+    fn brute_force(b: &mut Bitmap, o: &Oriented, gutter: u32, max_y: u32) -> Option<(u32, u32)> {
+        let (dw, dh) = (o.width + 2 * gutter, o.spans.len() as u32);
+        assert!(dh < 128, "the brute force knows no row stride");
+        (0..=max_y.min(b.height().saturating_sub(dh)))
+            .flat_map(|y| (0..=b.width.saturating_sub(dw)).map(move |x| (x, y)))
+            .find(|&(x, y)| {
+                dw <= b.width
+                    && o.spans.iter().enumerate().all(|(r, list)| {
+                        list.iter()
+                            .all(|&(lo, hi)| b.last_set(y + r as u32, x + lo, x + hi).is_none())
+                    })
+            })
+    }
+
+    /// The remembered free rectangles, the cores and the anchor-row skipping leave every
+    /// chart where the brute-force first fit puts it (same positions and turns, same
+    /// atlases), in strip and in multi-atlas mode.
+    #[test]
+    fn accelerated_search_places_like_brute_force() {
+        let charts = random_charts(300, 7);
+        let shapes = shapes(&charts);
+        let base: Vec<Matrix2<f64>> = shapes.iter().map(|c| min_area_rotation(c.uv)).collect();
+        let rasters = rasterise_all(&shapes, &base, 1.7, 2);
+        for (w, h, strip) in [(96, 1200, true), (96, 96, false)] {
+            let fast = place_with(&rasters, w, h, strip, Bitmap::find).unwrap();
+            let slow = place_with(&rasters, w, h, strip, brute_force).unwrap();
+            assert_eq!(fast, slow, "{w} x {h}");
+            assert!(fast.1 > 1 || strip, "several atlases: {}", fast.1);
+        }
+    }
+
+    /// The atlas texels each chart touches (conservative raster of its placed triangles).
+    fn placed_texels(uv: &[Point2<f64>], faces: &[[u32; 3]], pl: &Placement) -> Vec<(i64, i64)> {
+        let moved: Vec<Point2<f64>> = uv
+            .iter()
+            .map(|p| Point2::from(pl.linear * p.coords + pl.offset))
+            .collect();
+        let r = rasterise(
+            &ChartShape {
+                uv: &moved,
+                faces,
+                area: 0.0,
+            },
+            &Matrix2::identity(),
+            0,
+        );
+        let (ox, oy) = (r.origin.x as i64, r.origin.y as i64);
+        r.turns[0]
+            .runs
+            .iter()
+            .enumerate()
+            .flat_map(|(row, list)| {
+                list.iter()
+                    .flat_map(move |&(a, b)| (a..=b).map(move |c| (ox + c as i64, oy + row as i64)))
+            })
+            .collect()
+    }
+
+    /// Charts of one atlas: every texel inside [gutter, size - gutter), and no two charts
+    /// within `gutter` texels of each other (Chebyshev distance, texel to texel).
+    fn assert_apart(charts: &[Chart], p: &Packing, size: u32, gutter: u32) {
+        let (n, g) = (size as i64, gutter as i64);
+        let mut owner = vec![u32::MAX; (n * n) as usize];
+        for (i, ((uv, f), pl)) in charts.iter().zip(&p.placements).enumerate() {
+            for (x, y) in placed_texels(uv, f, pl) {
+                assert!(
+                    x >= g && y >= g && x < n - g && y < n - g,
+                    "chart {i} at texel {x} {y}"
+                );
+                for yy in y - g..=y + g {
+                    for xx in x - g..=x + g {
+                        let o = owner[(yy * n + xx) as usize];
+                        assert!(
+                            o == u32::MAX || o == i as u32,
+                            "charts {o} and {i} at {xx} {yy}"
+                        );
+                    }
+                }
+                owner[(y * n + x) as usize] = i as u32;
+            }
+        }
+    }
+
+    /// 400 charts in one atlas at the density the packer chooses: no overlap, the gutter
+    /// kept, and the utilisation (charts' area over the atlas', 1 being the area bound that
+    /// no packing can pass) above 0.55; the 2048 atlas (the 1024 search scaled by 2) keeps
+    /// its 4-texel gutter too.
+    #[test]
+    fn many_charts_pack_apart_near_the_area_bound() {
+        let charts = random_charts(400, 11);
+        let shapes = shapes(&charts);
+        let total: f64 = shapes.iter().map(|c| c.area).sum();
+        for (size, gutter) in [(512, 2), (2048, 4)] {
+            let cfg = PackConfig {
+                atlas_size: size,
+                gutter,
+                texels_per_unit: None,
+            };
+            let p = pack(&shapes, &cfg).unwrap();
+            assert_eq!(p.atlases, 1);
+            assert_apart(&charts, &p, size, gutter);
+            let utilisation = total * p.texels_per_unit.powi(2) / f64::from(size).powi(2);
+            eprintln!("{size}: utilisation {utilisation:.3}");
+            assert!(utilisation > 0.55 && utilisation <= 1.0, "{utilisation}");
+        }
     }
 }
