@@ -4,7 +4,7 @@
 //!
 //! In a workspace the cameras come from `<ws>/sparse/0`, the photos from `<ws>/images.json`,
 //! the mesh from `--mesh`, else `<ws>/charts.ply` (a mesh with UVs), else `<ws>/mesh.ply`;
-//! the outputs go to `<ws>/texture/` and `<ws>/model.glb`.
+//! the outputs go to `<ws>/texture/` and `<ws>/model.glb`, or to `-o <dir>` instead.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,7 +29,7 @@ pub struct TextureArgs {
     /// Folder of the photos named in the COLMAP model.
     #[arg(long)]
     pub images: Option<PathBuf>,
-    /// Output folder (with --colmap).
+    /// Output folder (needed with --colmap; with a workspace it defaults to the workspace).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Folder of masks (<image name>.png, non-zero on the object).
@@ -115,7 +115,9 @@ pub fn run(args: TextureArgs, ctx: &crate::Context) -> anyhow::Result<serde_json
                 None if ws.join("charts.ply").is_file() => ws.join("charts.ply"),
                 None => ws.join("mesh.ply"),
             };
-            (rec, workspace_images(ws)?, mesh, ws.clone())
+            // -o keeps the workspace's own model.glb when trying variants.
+            let out = args.output.clone().unwrap_or_else(|| ws.clone());
+            (rec, workspace_images(ws)?, mesh, out)
         }
         (None, None) => bail!("give a workspace, or --colmap with --images, --mesh and -o"),
     };
