@@ -192,12 +192,13 @@ impl fresco_core::Progress for Bars {
                 if let Ok(mut slot) = self.line.lock()
                     && let Some(t) = slot.take()
                 {
-                    print_line(&format!(
-                        "  {}: done, {} in {:.1} s",
-                        t.name,
-                        t.done,
-                        t.start.elapsed().as_secs_f64()
-                    ));
+                    let seconds = t.start.elapsed().as_secs_f64();
+                    // A task without a count (a spinner) has nothing to report but its time.
+                    print_line(&if t.total == 0 && t.done == 0 {
+                        format!("  {}: done in {seconds:.1} s", t.name)
+                    } else {
+                        format!("  {}: done, {} in {seconds:.1} s", t.name, t.done)
+                    });
                 }
             }
             Mode::Bar => {
