@@ -23,6 +23,8 @@ use std::collections::{HashMap, HashSet};
 use fresco_core::Mesh;
 use fresco_core::mesh::Uv;
 
+use crate::seams::{EdgeSide, edges_by_position};
+
 /// Weight of the term pulling every offset to zero (relative to a seam edge's 1).
 const REGULARISATION: f32 = 1e-3;
 /// Samples per seam edge: one per texel along the edge's UV image, at least 2, at most this.
@@ -81,34 +83,10 @@ pub(crate) fn level_seams(
         let n = index.len() as u32;
         *index.entry((c, v)).or_insert(n)
     };
-    // Sides of each mesh edge, keyed by the endpoints' positions (split vertices match).
-    let key = |v: u32| {
-        let p = mesh.positions[v as usize];
-        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
-    };
-    // (face, corner at the lower key, corner at the higher key)
-    type Side = (usize, usize, usize);
-    let mut edges: HashMap<([u64; 3], [u64; 3]), Vec<Side>> = HashMap::new();
-    for (f, tri) in mesh.faces.iter().enumerate() {
-        for k in 0..3 {
-            let (ka, kb) = (key(tri[k]), key(tri[(k + 1) % 3]));
-            if ka == kb {
-                continue;
-            }
-            let (e, side) = if ka < kb {
-                ((ka, kb), (f, k, (k + 1) % 3))
-            } else {
-                ((kb, ka), (f, (k + 1) % 3, k))
-            };
-            edges.entry(e).or_default().push(side);
-        }
-    }
-    let mut keys: Vec<_> = edges.keys().copied().collect();
-    keys.sort_unstable();
     let mut rows: Vec<Row> = Vec::new();
     let mut inner: HashSet<(u32, u32, u32)> = HashSet::new();
-    for e in keys {
-        let sides = &edges[&e];
+    // Sides of each mesh edge, keyed by the endpoints' positions (split vertices match).
+    for (_, sides) in &edges_by_position(mesh) {
         // Smoothness inside each chart, once per (chart, edge).
         for &(f, ka, kb) in sides {
             let (a, b) = (mesh.faces[f][ka], mesh.faces[f][kb]);
@@ -130,7 +108,7 @@ pub(crate) fn level_seams(
         if cs == ct {
             continue;
         }
-        let uv = |side: Side, k: usize| {
+        let uv = |side: EdgeSide, k: usize| {
             let u = uvs[side.0][k];
             [u[0] as f64, u[1] as f64]
         };

@@ -43,34 +43,11 @@ pub fn seam_discrepancy(mesh: &Mesh, textures: &[RgbImage]) -> Option<SeamDiscre
         return None;
     }
     let tex_of = |f: usize| mesh.face_textures.as_ref().map_or(0, |t| t[f] as usize);
-    let key = |v: u32| {
-        let p = mesh.positions[v as usize];
-        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
-    };
-    // Edge (ordered by position key) -> the faces and corner indices along it.
-    type Side = (usize, usize, usize);
-    let mut edges: HashMap<([u64; 3], [u64; 3]), Vec<Side>> = HashMap::new();
-    for (f, tri) in mesh.faces.iter().enumerate() {
-        for k in 0..3 {
-            let (ka, kb) = (key(tri[k]), key(tri[(k + 1) % 3]));
-            if ka == kb {
-                continue;
-            }
-            let (e, side) = if ka < kb {
-                ((ka, kb), (f, k, (k + 1) % 3))
-            } else {
-                ((kb, ka), (f, (k + 1) % 3, k))
-            };
-            edges.entry(e).or_default().push(side);
-        }
-    }
-    let mut keys: Vec<_> = edges.keys().copied().collect();
-    keys.sort_unstable();
     let mut out = SeamDiscrepancy::default();
     let mut samples: Vec<(f64, f64)> = Vec::new();
     let (mut sum, mut wsum) = (0.0, 0.0);
-    for e in keys {
-        let sides = &edges[&e];
+    for (e, sides) in &edges_by_position(mesh) {
+        let e = *e;
         let point = |k: [u64; 3]| fresco_core::nalgebra::Point3::from(k.map(f64::from_bits));
         let length = (point(e.1) - point(e.0)).norm();
         out.edge_length += length;
@@ -78,7 +55,7 @@ pub fn seam_discrepancy(mesh: &Mesh, textures: &[RgbImage]) -> Option<SeamDiscre
             continue;
         }
         let (s, t) = (sides[0], sides[1]);
-        let uv = |side: Side, c: usize| {
+        let uv = |side: EdgeSide, c: usize| {
             let u = uvs[side.0][c];
             [u[0] as f64, u[1] as f64]
         };
@@ -130,6 +107,41 @@ pub fn seam_discrepancy(mesh: &Mesh, textures: &[RgbImage]) -> Option<SeamDiscre
         }
     }
     Some(out)
+}
+
+/// One face's side of a mesh edge: (face, corner at the edge's lower position key, corner at
+/// its higher key).
+pub(crate) type EdgeSide = (usize, usize, usize);
+
+/// A mesh edge keyed by its endpoints' positions (the bits of x, y, z), lower key first.
+pub(crate) type EdgeKey = ([u64; 3], [u64; 3]);
+
+/// The mesh's edges keyed by endpoint position, so that the split copies of a seam vertex
+/// (same position, other UVs) meet on one edge, each with the face sides along it; sorted by
+/// key so that what is built from them does not depend on hashing.
+pub(crate) fn edges_by_position(mesh: &Mesh) -> Vec<(EdgeKey, Vec<EdgeSide>)> {
+    let key = |v: u32| {
+        let p = mesh.positions[v as usize];
+        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+    };
+    let mut edges: HashMap<EdgeKey, Vec<EdgeSide>> = HashMap::new();
+    for (f, tri) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let (ka, kb) = (key(tri[k]), key(tri[(k + 1) % 3]));
+            if ka == kb {
+                continue;
+            }
+            let (e, side) = if ka < kb {
+                ((ka, kb), (f, k, (k + 1) % 3))
+            } else {
+                ((kb, ka), (f, (k + 1) % 3, k))
+            };
+            edges.entry(e).or_default().push(side);
+        }
+    }
+    let mut edges: Vec<_> = edges.into_iter().collect();
+    edges.sort_unstable_by_key(|e| e.0);
+    edges
 }
 
 #[cfg(test)]
