@@ -3,8 +3,9 @@
 //!
 //! A capture is object-centric when its cameras look inward at a common point: the point
 //! nearest (least squares) to every optical axis lies within `max_aim_deg` of the axis of at
-//! least 80% of them. Then the cameras' mean direction from that point is roughly "up" (a
-//! ring or a dome stands above the ground). The support plane is searched among the points
+//! least 80% of them. Then the normal of the plane nearest the camera centres, on the side
+//! of their mean direction from that point, is roughly "up" (a ring or a dome stands above
+//! the ground). The support plane is searched among the points
 //! whose normal faces up (within 45 degrees) by a Hough transform over its tilt (to 30
 //! degrees from the cameras' up: a ring need not be parallel to the ground): for each
 //! candidate normal, the points' heights along it in bins of the smallest tolerance; the
@@ -13,7 +14,7 @@
 //! by the median of the points near it. It is the support plane only when
 //! - it holds at least `min_fraction` of the points (dominant),
 //! - every camera and the aim point lie on its upper side (the object stands on it, seen
-//!   from above),
+//!   from above; candidates of the vote that fail this do not compete),
 //! - most of the points off the plane lie above it (the object is there).
 //!
 //! The points on the plane (within the tolerance) and below it are then dropped. The
@@ -112,6 +113,36 @@ pub fn aim_point(cameras: &[CameraRay], max_aim_deg: f64) -> Option<Point3<f64>>
     (aimed * 5 >= cameras.len() * 4).then_some(p)
 }
 
+/// "Up" of an object-centric capture: the normal of the plane nearest the camera centres (a
+/// ring's axis, a dome's), on the side of the cameras' mean direction from the aim point
+/// `mean_dir`. The mean direction alone tilts towards whichever part of a low ring has more
+/// cameras (a ring at 8 degrees of elevation with two photos left out: 40 degrees off).
+fn camera_up(cameras: &[CameraRay], mean_dir: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let n = cameras.len() as f64;
+    let centroid = cameras
+        .iter()
+        .map(|c| c.centre.coords)
+        .sum::<Vector3<f64>>()
+        / n;
+    let scatter = cameras
+        .iter()
+        .map(|c| (c.centre.coords - centroid) * (c.centre.coords - centroid).transpose())
+        .sum::<Matrix3<f64>>();
+    let eigen = scatter.symmetric_eigen();
+    let (smallest, _) = eigen
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
+    let normal = eigen.eigenvectors.column(smallest).into_owned();
+    let up = if normal.dot(mean_dir) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    up.try_normalize(1e-12)
+}
+
 /// Finds the support plane of `points` (with unit `normals` facing their cameras) under
 /// `cameras`; see the module documentation. `None` when the capture is not object-centric
 /// or no plane qualifies.
@@ -123,7 +154,7 @@ pub fn find_support_plane(
 ) -> Option<SupportPlane> {
     let aim = aim_point(cameras, cfg.max_aim_deg)?;
     let mean_dir: Vector3<f64> = cameras.iter().map(|c| c.centre - aim).sum::<Vector3<f64>>();
-    let mut up = mean_dir.try_normalize(1e-12)?;
+    let mut up = camera_up(cameras, &mean_dir)?;
     let distance =
         cameras.iter().map(|c| (c.centre - aim).norm()).sum::<f64>() / cameras.len() as f64;
     let (min_tol, max_tol) = (0.002 * distance, 0.02 * distance);
@@ -184,7 +215,11 @@ pub fn find_support_plane(
                 );
                 let n = (centre + a * e1 + b * e2).normalize();
                 let (count, offset) = peak(&n);
-                if count > round.0 {
+                // Only a plane with every camera and the aim point on its upper side can be
+                // the support: a backdrop or a wall tilted towards the search's limit may
+                // hold more up-facing points, but cameras stand on both of its sides.
+                let clear = |p: &Point3<f64>| p.coords.dot(&n) - offset > max_tol;
+                if count > round.0 && clear(&aim) && cameras.iter().all(|c| clear(&c.centre)) {
                     round = (count, offset, n);
                 }
             }
