@@ -357,6 +357,24 @@ mod tests {
     }
 
     #[test]
+    fn finds_the_plane_under_a_low_ring_with_a_gap() {
+        // A ring 8 degrees above the aim point with three neighbouring cameras missing: the
+        // cameras' mean direction leans about 60 degrees off up, the ring's axis does not.
+        let cams: Vec<CameraRay> = ring(16, 0.14, 0.0).into_iter().skip(3).collect();
+        let (pts, nrm, object) = scene(0.0);
+        let plane = find_support_plane(&pts, &nrm, &cams, &SupportPlaneConfig::default())
+            .expect("a support plane");
+        assert!(
+            Vector3::from(plane.normal)
+                .angle(&Vector3::z())
+                .to_degrees()
+                < 1.0
+        );
+        let kept_plane = pts[object..].iter().filter(|p| plane.keeps(p)).count();
+        assert!(kept_plane * 100 <= pts.len() - object, "{kept_plane}");
+    }
+
+    #[test]
     fn no_plane_without_object_centric_cameras_or_with_cameras_below() {
         let (pts, nrm, _) = scene(0.0);
         // Cameras side by side looking the same way (a facade): no common aim point.
