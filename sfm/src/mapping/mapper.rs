@@ -2474,9 +2474,9 @@ mod tests {
         assert!(e.max_centre_frac < 0.01, "{e:?}");
     }
 
-    /// Two unrelated image sets (no match between them) give two models, each complete.
-    #[test]
-    fn unrelated_sets_give_two_models() {
+    /// Two unrelated synthetic sets (8 images, seed 1; 6 images, seed 2) and one mapper input
+    /// holding both: the second set's images get ids 101.. and camera 2.
+    fn two_unrelated_sets() -> (Reconstruction, Reconstruction, MapperInput) {
         let (a, _) = synthetic_reconstruction(&SyntheticConfig {
             cameras: 8,
             points: 500,
@@ -2493,7 +2493,6 @@ mod tests {
         });
         let mut ia = input_from_tracks(&a);
         let ib = input_from_tracks(&b);
-        // Image ids 101.. and camera 2 for the second set.
         let mut cam = ib.cameras[&1].clone();
         cam.id = 2;
         ia.cameras.insert(2, cam);
@@ -2508,6 +2507,13 @@ mod tests {
             p.image2 += 100;
             ia.pairs.push(p);
         }
+        (a, b, ia)
+    }
+
+    /// Two unrelated image sets (no match between them) give two models, each complete.
+    #[test]
+    fn unrelated_sets_give_two_models() {
+        let (_, _, mut ia) = two_unrelated_sets();
         let out = map(&ia, &config(), &NoProgress).unwrap();
         assert_eq!(out.models.len(), 2);
         assert_eq!(out.models[0].images.len(), 8);
@@ -2558,36 +2564,8 @@ mod tests {
     /// their points), under the 60% asked, and the merge is undone: two models.
     #[test]
     fn repeated_structure_between_unrelated_sets_is_not_merged() {
-        let (a, _) = synthetic_reconstruction(&SyntheticConfig {
-            cameras: 8,
-            points: 500,
-            noise_px: 0.3,
-            seed: 1,
-            ..Default::default()
-        });
-        let (b, _) = synthetic_reconstruction(&SyntheticConfig {
-            cameras: 6,
-            points: 500,
-            noise_px: 0.3,
-            seed: 2,
-            ..Default::default()
-        });
-        let mut ia = input_from_tracks(&a);
-        let ib = input_from_tracks(&b);
-        let mut cam = ib.cameras[&1].clone();
-        cam.id = 2;
-        ia.cameras.insert(2, cam.clone());
-        for mut im in ib.images {
-            im.id += 100;
-            im.camera_id = 2;
-            im.name = format!("b_{}", im.name);
-            ia.images.push(im);
-        }
-        for mut p in ib.pairs {
-            p.image1 += 100;
-            p.image2 += 100;
-            ia.pairs.push(p);
-        }
+        let (a, b, mut ia) = two_unrelated_sets();
+        let cam = ia.cameras[&2].clone();
         let b_from_a = Sim3 {
             scale: 1.3,
             rotation: UnitQuaternion::from_scaled_axis(
