@@ -481,7 +481,8 @@ fn max_channel_difference(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// (99th percentile of the brightening 25/255 inside the disc at 2, test below).
 const OUTLIER_DILATION: usize = 3;
 
-fn median_of(v: &mut [f32]) -> f32 {
+/// The median of `v` (the mean of the middle two for an even count); sorts `v`.
+pub(crate) fn median_of(v: &mut [f32]) -> f32 {
     v.sort_by(f32::total_cmp);
     let m = v.len() / 2;
     if v.len() % 2 == 1 {

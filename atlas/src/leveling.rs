@@ -23,6 +23,7 @@ use std::collections::{HashMap, HashSet};
 use fresco_core::Mesh;
 use fresco_core::mesh::Uv;
 
+use crate::fusion::median_of;
 use crate::seams::{EdgeSide, edges_by_position};
 
 /// Weight of the term pulling every offset to zero (relative to a seam edge's 1).
@@ -140,22 +141,12 @@ pub(crate) fn level_seams(
         rows.push(Row {
             idx: ids,
             a: [0.5, 0.5, -0.5, -0.5],
-            rhs: diffs.map(|mut d| median(&mut d).clamp(-MAX_STEP, MAX_STEP)),
+            rhs: diffs.map(|mut d| median_of(&mut d).clamp(-MAX_STEP, MAX_STEP)),
             w: 1.0,
         });
     }
     let values = solve(&rows, index.len());
     Offsets { index, values }
-}
-
-fn median(v: &mut [f32]) -> f32 {
-    v.sort_by(f32::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
 }
 
 /// Least squares over `rows` plus [`REGULARISATION`] on every unknown, by Jacobi-
