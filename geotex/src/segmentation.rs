@@ -21,8 +21,14 @@
 //!    and likewise for `q` and `t`. Large meshes run it on a random subset of at most
 //!    about `samples_per_window` per spatial window (fresco's seeded `Rng`).
 //! 3. Convergence points closer than half a window in all three blocks are merged
-//!    (transitively): each merged set is a cluster, "the sort of geometric texture" of its
-//!    vertices; every vertex takes the cluster of its nearest sample in `χ`.
+//!    (transitively, [`merge_modes`]); then clusters whose mean `(q, t)` lie within half a
+//!    window of each other are joined, closest first ([`merge_clusters`]): a texture whose
+//!    statistics spread (bump tops, flanks, the ground between bumps) leaves several chains
+//!    of modes, and which of them the per-mode merge joins depends on the random sample
+//!    subset, so that one seed kept a bump patch whole and another split it into two
+//!    interleaved clusters too thin to be regions (the patch was lost to the base). Each
+//!    joined set is a cluster, "the sort of geometric texture" of its vertices; every vertex
+//!    takes the cluster of its nearest sample in `χ`.
 //! 4. Which clusters are texture (the paper leaves this open): a cluster whose vertices'
 //!    mean curvature roughness `sqrt(D(κ1) + D(κ2)) · r` reaches `roughness_threshold`;
 //!    and of its vertices those with both convex and concave curvature around them
@@ -393,6 +399,81 @@ pub(crate) fn merge_modes(modes: &[Feature]) -> (Vec<u32>, usize) {
     (cluster, count as usize)
 }
 
+/// Joins the clusters of one sort of texture that the mode merging left apart (module docs,
+/// step 3): agglomerative, closest pair first, on the clusters' mean `(q, t)` (the mean of
+/// their modes, weighted by mode count), while the closest pair is within half a window in
+/// both blocks. The per-mode merge is transitive over chains of modes that happen to lie
+/// close, so which modes of a texture with spread statistics (bump tops, flanks and the
+/// ground between them) end up joined depends on the random sample subset; the clusters'
+/// means do not. Means are updated after each join (no chaining through border clusters).
+/// Returns a cluster id per mode, numbered by their first mode, and the count.
+pub(crate) fn merge_clusters(
+    modes: &[Feature],
+    mode_cluster: &[u32],
+    clusters: usize,
+) -> (Vec<u32>, usize) {
+    let mut weight = vec![0.0f64; clusters];
+    let mut q = vec![Vector2::zeros(); clusters];
+    let mut t = vec![Vector2::zeros(); clusters];
+    for (m, &c) in modes.iter().zip(mode_cluster) {
+        weight[c as usize] += 1.0;
+        q[c as usize] += m.q;
+        t[c as usize] += m.t;
+    }
+    for c in 0..clusters {
+        if weight[c] > 0.0 {
+            q[c] /= weight[c];
+            t[c] /= weight[c];
+        }
+    }
+    let mut into: Vec<u32> = (0..clusters as u32).collect();
+    let mut alive: Vec<bool> = weight.iter().map(|&w| w > 0.0).collect();
+    loop {
+        let mut best: Option<(f64, usize, usize)> = None;
+        for a in 0..clusters {
+            if !alive[a] {
+                continue;
+            }
+            for b in a + 1..clusters {
+                if !alive[b] {
+                    continue;
+                }
+                let d = f64::max((q[a] - q[b]).norm(), (t[a] - t[b]).norm());
+                if d < 0.5 && best.is_none_or(|(bd, _, _)| d < bd) {
+                    best = Some((d, a, b));
+                }
+            }
+        }
+        let Some((_, a, b)) = best else { break };
+        let w = weight[a] + weight[b];
+        q[a] = (q[a] * weight[a] + q[b] * weight[b]) / w;
+        t[a] = (t[a] * weight[a] + t[b] * weight[b]) / w;
+        weight[a] = w;
+        alive[b] = false;
+        into[b] = a as u32;
+    }
+    let root = |mut c: u32| {
+        while into[c as usize] != c {
+            c = into[c as usize];
+        }
+        c
+    };
+    let mut id = vec![u32::MAX; clusters];
+    let mut count = 0u32;
+    let out = mode_cluster
+        .iter()
+        .map(|&c| {
+            let r = root(c) as usize;
+            if id[r] == u32::MAX {
+                id[r] = count;
+                count += 1;
+            }
+            id[r]
+        })
+        .collect();
+    (out, count as usize)
+}
+
 /// Segments `mesh` into texture regions and base (module docs). `normals` are the vertex
 /// normals the curvatures were computed with.
 pub fn segment(
@@ -431,6 +512,7 @@ pub fn segment(
     let samples: Vec<Feature> = sample_ids.iter().map(|&v| feature(v)).collect();
     let modes = mean_shift(&samples, cfg.max_iterations);
     let (mode_cluster, clusters) = merge_modes(&modes);
+    let (mode_cluster, clusters) = merge_clusters(&modes, &mode_cluster, clusters);
 
     // Every vertex takes the cluster of its nearest sample in χ among its spatial
     // neighbours (itself when it is a sample).

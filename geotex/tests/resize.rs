@@ -22,8 +22,13 @@ fn output_pitch(out: &fresco_geotex::Resized) -> f64 {
     m.output.regions[0].period[2].expect("the output has a period along z")
 }
 
+/// Seeds every seed-dependent test runs over: the segmentation's sample subset and the
+/// synthesis' random start and template shifts change with the seed, and a property that
+/// holds at one seed only is luck.
+const SEEDS: std::ops::Range<u64> = 0..5;
+
 #[test]
-fn segmentation_agrees_with_the_ground_truth_on_nine_tenths_of_the_vertices() {
+fn segmentation_agrees_with_the_ground_truth_on_nine_tenths_of_the_vertices_at_every_seed() {
     for model in gt::all_models() {
         let mesh = &model.mesh;
         let (_, g) = graph::prepare(mesh).unwrap();
@@ -35,16 +40,54 @@ fn segmentation_agrees_with_the_ground_truth_on_nine_tenths_of_the_vertices() {
             cc.radius_in_edges * g.mean_edge,
             cc.columns_per_radius,
         );
-        let seg = segment(mesh, &g, &curv, &SegmentationConfig::default());
-        let agree = seg
-            .labels
-            .iter()
-            .zip(&model.labels)
-            .filter(|(a, b)| (**a != 0) == (**b != 0))
-            .count() as f64
-            / mesh.positions.len() as f64;
-        eprintln!("{}: agreement {agree:.4}", model.name);
-        assert!(agree >= 0.9, "{}: {agree}", model.name);
+        for seed in SEEDS {
+            let cfg = SegmentationConfig {
+                seed,
+                ..SegmentationConfig::default()
+            };
+            let seg = segment(mesh, &g, &curv, &cfg);
+            let agree = seg
+                .labels
+                .iter()
+                .zip(&model.labels)
+                .filter(|(a, b)| (**a != 0) == (**b != 0))
+                .count() as f64
+                / mesh.positions.len() as f64;
+            eprintln!("{} seed {seed}: agreement {agree:.4}", model.name);
+            assert!(agree >= 0.9, "{} seed {seed}: {agree}", model.name);
+            // One region per generator texture, each mostly its vertices: two kinds of
+            // bumps are two sorts of texture, one scale pattern is one. (Four fifths: the
+            // generator's labels stop where a texture's fade reaches one half, the
+            // segmentation also takes some of the fade beyond; 89% on the cylinder.)
+            assert_eq!(
+                seg.regions.len(),
+                model.textures.len(),
+                "{} seed {seed}: {:?}",
+                model.name,
+                seg.regions
+            );
+            let mut seen = Vec::new();
+            for region in 1..=seg.regions.len() as u32 {
+                let mut counts = [0usize; 256];
+                for (l, t) in seg.labels.iter().zip(&model.labels) {
+                    if *l == region {
+                        counts[*t as usize] += 1;
+                    }
+                }
+                let total: usize = counts.iter().sum();
+                let (truth, most) = (1..256)
+                    .map(|t| (t, counts[t]))
+                    .max_by_key(|x| x.1)
+                    .unwrap();
+                let purity = most as f64 / total as f64;
+                assert!(
+                    purity >= 0.8 && !seen.contains(&truth),
+                    "{} seed {seed}: region {region} is {purity} label {truth} ({seen:?} seen)",
+                    model.name
+                );
+                seen.push(truth);
+            }
+        }
     }
 }
 
