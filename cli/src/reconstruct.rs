@@ -54,6 +54,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             upright: sift.upright,
             rootsift: sift.root_sift,
             no_upsample: !sift.scale_space.upsample,
+            drop_outline: sift.plain_background.enabled,
             contrast_threshold: sift.detector.contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),
