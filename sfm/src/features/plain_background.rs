@@ -115,7 +115,7 @@ pub fn plain_background(image: &GreyImage, config: &PlainBackgroundConfig) -> Op
                 .map(|&i| (image.data[i] - level).abs())
                 .collect(),
         );
-    if !(noise <= config.max_noise) {
+    if noise.is_nan() || noise > config.max_noise {
         return None;
     }
     let tolerance = config.noise_sigmas * noise + 1.0 / 255.0;
