@@ -41,6 +41,11 @@ pub struct FeaturesArgs {
     /// Do not up-sample photos 2x before the first octave (faster, fewer small features).
     #[arg(long)]
     pub no_upsample: bool,
+    /// Drop keypoints on the object's outline when the photos have a plain background (for a
+    /// smooth object on a plain backdrop: its outline is an occluding contour, which biases
+    /// the poses; see sfm/src/features/plain_background.rs).
+    #[arg(long)]
+    pub drop_outline: bool,
     /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in
     /// [0, 1] (OpenCV's contrastThreshold; COLMAP's peak_threshold times 3).
     #[arg(long, default_value_t = DetectorConfig::default().contrast_threshold)]
@@ -80,6 +85,7 @@ pub fn features_config(args: &FeaturesArgs) -> FeaturesConfig {
         ..Default::default()
     };
     sift.scale_space.upsample = !args.no_upsample;
+    sift.plain_background.enabled = args.drop_outline;
     sift.detector.contrast_threshold = args.contrast_threshold;
     FeaturesConfig {
         sift,

@@ -35,6 +35,10 @@ pub struct ReconstructArgs {
     /// Refine the principal point of uncalibrated cameras (see `fresco sfm`).
     #[arg(long)]
     pub refine_principal_point: bool,
+    /// Drop keypoints on the object's outline against a plain background (see `fresco
+    /// features --drop-outline`).
+    #[arg(long)]
+    pub drop_outline: bool,
 }
 
 pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -54,6 +58,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             upright: sift.upright,
             rootsift: sift.root_sift,
             no_upsample: !sift.scale_space.upsample,
+            drop_outline: args.drop_outline || sift.plain_background.enabled,
             contrast_threshold: sift.detector.contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),

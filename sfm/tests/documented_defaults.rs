@@ -8,6 +8,7 @@ use fresco_sfm::bundle::BundleConfig;
 use fresco_sfm::bundle::silhouette::SilhouetteConfig;
 use fresco_sfm::features::dog::DetectorConfig;
 use fresco_sfm::features::orientation::OrientationConfig;
+use fresco_sfm::features::plain_background::PlainBackgroundConfig;
 use fresco_sfm::features::scale_space::ScaleSpaceConfig;
 use fresco_sfm::features::{FeaturesConfig, SiftConfig};
 use fresco_sfm::geometry::pnp::PnpConfig;
@@ -48,6 +49,12 @@ fn feature_configs() {
         &[],
     );
     assert_documented_defaults(
+        include_str!("../src/features/plain_background.rs"),
+        "PlainBackgroundConfig",
+        &debug(&PlainBackgroundConfig::default()),
+        &[],
+    );
+    assert_documented_defaults(
         include_str!("../src/features/extract.rs"),
         "SiftConfig",
         &debug(&SiftConfig::default()),
@@ -55,6 +62,10 @@ fn feature_configs() {
             known("ScaleSpaceConfig::default()", ScaleSpaceConfig::default()),
             known("DetectorConfig::default()", DetectorConfig::default()),
             known("OrientationConfig::default()", OrientationConfig::default()),
+            known(
+                "PlainBackgroundConfig::default()",
+                PlainBackgroundConfig::default(),
+            ),
         ],
     );
     assert_documented_defaults(

@@ -6,24 +6,35 @@
 //! properties: every view in one model, rotation error <= 0.5 degrees after similarity
 //! alignment, and, where the true focal length differs from the prior, the estimate within 2%.
 //!
-//! Measured 2026-11-26 (session 4, test profile); the cases that meet their properties run
+//! Measured 2026-11-26 (session 5, test profile); the cases that meet their properties run
 //! in CI, the others are `#[ignore]`d with their figures (`cargo test -p fresco-sfm --test
-//! hard_cases -- --include-ignored --nocapture` runs them all):
-//! - (a) weak texture: one model of 16 (was: no model), rotation median 0.52, max 0.92 deg
-//!   (0.5 asked), focal 2.9% off. The best pair (77 inliers) triangulated 0 points from the
-//!   two-view geometry's pose (`E = Kᵀ F K` of a fundamental matrix fitted to few, noisy
-//!   matches) and 76 from the five-point pose, which the mapper's last initialisation pass
-//!   now tries;
-//! - (b) focal 4x and 0.5x the prior: one model of 16, rotation max 0.45 / 0.61 deg (0.5
-//!   asked); focal 14% / 3.8% off (2% asked, not met): the bundle adjustment's minimum on
-//!   these photos, and the ring is the configuration in which fundamental matrices do not
-//!   determine the focal length (see the tests); 4x runs in CI with its measured bound;
+//! hard_cases -- --include-ignored --nocapture` runs them all). Default settings:
+//! - (a) weak texture: one model of 16, rotation median 0.52, max 0.92 deg (0.5 asked), focal
+//!   2.9% off;
+//! - (b) focal 4x and 0.5x the prior: one model of 16, rotation max 0.45 / 0.61 deg; focal 14%
+//!   / 3.8% off (2% asked); 4x runs in CI with its measured focal bound;
 //! - (b) on an irregular ring: the focal length from F replaces the default ("F-estimate");
-//! - (c) weak at two places: one model of 16 (met), rotation median 0.51, max 0.72 deg (0.5
-//!   asked), focal 7.8% off;
-//! - the undamaged ring itself (`plain_ring_reference`): one model of 16, rotation median
-//!   0.38, max 0.77 deg, focal 362 px against 384 (5.7% off): at 320x240 on this torus the
-//!   self-calibration, not the weak links, limits (c)'s accuracy.
+//! - (c) weak at two places: one model of 16 (met), rotation max 0.72 deg, focal 7.8% off;
+//! - the undamaged ring itself (`plain_ring_reference`): rotation max 0.77 deg, focal 5.7% off.
+//!
+//! Why the undamaged ring is 0.77 degrees off (session 5): not the measure (aligning the
+//! rotations instead of the centres gives 0.80), not the self-calibration (with the true
+//! intrinsics fixed, the same tracks adjust to 0.70 deg), not the bundle adjustment's
+//! convergence (started from the true cameras it returns to the same minimum), not the
+//! keypoints' precision (moved to their true projections plus 0.5 px of Gaussian noise, the
+//! same tracks give 0.25 deg; fresco's keypoints agree with COLMAP's to a median 0.1 px).
+//! The tracks are biased: 14% of the observations are keypoints whose blob touches the black
+//! background, on the torus's occluding contour, which slides over the surface as the camera
+//! moves round it. `--drop-outline` (`plain_background.rs`) drops them; the `*_outline_dropped`
+//! cases measure it:
+//! - plain ring: rotation max 0.58 deg (0.77), focal 2.2% off (5.7%);
+//! - (a) weak texture: max 0.507 deg (0.92), focal 0.5% off;
+//! - (b) 0.5x: max 0.29 deg, focal 0.4% off: **met**, runs in CI;
+//! - (b) 4x: max 0.36 deg, focal 9.7% off (14%);
+//! - (c) weak at two places: max 0.66 deg (0.72), focal 4.8% off.
+//!
+//! It is not the default: on templeSparseRing (black backdrop, sharp outline made of the
+//! temple's own corners) it costs accuracy (see `plain_background.rs`).
 
 use std::path::Path;
 
@@ -52,19 +63,33 @@ fn scene(configure: impl FnOnce(&mut SceneConfig)) -> SceneConfig {
 /// Renders `config`, lets `edit` change the photos, reconstructs with default settings and
 /// evaluates the first model against the generator's cameras.
 fn reconstruct(config: &SceneConfig, edit: impl Fn(&Path)) -> (SfmSummary, PoseEvaluation, f64) {
+    reconstruct_with(config, &FeaturesConfig::default(), edit)
+}
+
+/// [`reconstruct`] with keypoints on the object's outline dropped (`fresco features
+/// --drop-outline`, `plain_background.rs`).
+fn reconstruct_outline_dropped(
+    config: &SceneConfig,
+    edit: impl Fn(&Path),
+) -> (SfmSummary, PoseEvaluation, f64) {
+    let mut features = FeaturesConfig::default();
+    features.sift.plain_background.enabled = true;
+    reconstruct_with(config, &features, edit)
+}
+
+/// [`reconstruct`] with the features stage's settings `features`.
+fn reconstruct_with(
+    config: &SceneConfig,
+    features: &FeaturesConfig,
+    edit: impl Fn(&Path),
+) -> (SfmSummary, PoseEvaluation, f64) {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     let summary = write_dataset(config, &data, &NoProgress).unwrap();
     let true_focal = summary.camera_params[0];
     edit(&data.join("images"));
     let ws = dir.path().join("ws");
-    extract_photo_folder(
-        &data.join("images"),
-        &ws,
-        &FeaturesConfig::default(),
-        &NoProgress,
-    )
-    .unwrap();
+    extract_photo_folder(&data.join("images"), &ws, features, &NoProgress).unwrap();
     match_workspace(&ws, &MatchStageConfig::default(), &NoProgress).unwrap();
     let sfm = run_sfm(&ws, &SfmConfig::default(), &NoProgress).unwrap();
     let model = read_model_or_workspace(&ws).unwrap();
@@ -156,29 +181,32 @@ fn no_exif_irregular_ring_focal_from_f() {
     assert!(e.max_rotation_deg <= 1.0, "{e:?}");
 }
 
+/// Two views on each side of the ring (3, 4, 11, 12) darkened to 15% and blurred (3x3 box,
+/// twice), as under-exposed, shaken photos are.
+fn weaken(images: &Path) {
+    let mut names: Vec<_> = std::fs::read_dir(images)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    names.sort();
+    for k in [3, 4, 11, 12] {
+        let p = &names[k];
+        let mut img = image::open(p).unwrap().to_rgb8();
+        for _ in 0..2 {
+            img = image::imageops::blur(&img, 1.0);
+        }
+        for px in img.pixels_mut() {
+            px.0 = px.0.map(|v| (v as f64 * 0.15).round() as u8);
+        }
+        img.save(p).unwrap();
+    }
+}
+
 /// (c) A ring whose matches are weak at two opposite places: two views on each side darkened
 /// to 15% and blurred (3x3 box, twice), as under-exposed, shaken photos are. One model.
 #[test]
 #[ignore = "issue 18 not met: rotation max 0.72 deg (see the module documentation)"]
 fn ring_weak_at_two_opposite_places() {
-    let weaken = |images: &Path| {
-        let mut names: Vec<_> = std::fs::read_dir(images)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .collect();
-        names.sort();
-        for k in [3, 4, 11, 12] {
-            let p = &names[k];
-            let mut img = image::open(p).unwrap().to_rgb8();
-            for _ in 0..2 {
-                img = image::imageops::blur(&img, 1.0);
-            }
-            for px in img.pixels_mut() {
-                px.0 = px.0.map(|v| (v as f64 * 0.15).round() as u8);
-            }
-            img.save(p).unwrap();
-        }
-    };
     let (sfm, e, _) = reconstruct(&scene(|_| {}), weaken);
     assert_one_accurate_model(&sfm, &e);
 }
@@ -189,4 +217,45 @@ fn ring_weak_at_two_opposite_places() {
 fn plain_ring_reference() {
     let (sfm, e, _) = reconstruct(&scene(|_| {}), |_| {});
     assert_one_accurate_model(&sfm, &e);
+}
+
+/// The cases above with `--drop-outline`: keypoints whose blob touches the plain background
+/// dropped. The root cause of the 0.6-0.9 degree errors above: those keypoints sit on the
+/// torus's occluding contour, which slides over the surface as the camera moves, so their
+/// tracks are biased alike around the ring (see `plain_background.rs`).
+#[test]
+#[ignore = "not met: rotation max 0.58 deg (see the module documentation)"]
+fn plain_ring_outline_dropped() {
+    let (sfm, e, _) = reconstruct_outline_dropped(&scene(|_| {}), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+}
+
+#[test]
+#[ignore = "issue 18 not met: rotation max 0.507 deg (see the module documentation)"]
+fn weak_texture_outline_dropped() {
+    let (sfm, e, _) = reconstruct_outline_dropped(&scene(|c| c.albedo_contrast = 0.1), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+}
+
+#[test]
+#[ignore = "issue 18 not met: rotation max 0.66 deg (see the module documentation)"]
+fn ring_weak_at_two_opposite_places_outline_dropped() {
+    let (sfm, e, _) = reconstruct_outline_dropped(&scene(|_| {}), weaken);
+    assert_one_accurate_model(&sfm, &e);
+}
+
+/// (b) 0.5x with `--drop-outline`: rotation max 0.29 deg, focal 191.2 px against 192 (0.4%).
+#[test]
+fn no_exif_focal_half_the_prior_outline_dropped() {
+    let (sfm, e, _) = reconstruct_outline_dropped(&scene(|c| c.focal = Some(0.5 * 384.0)), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+    assert!(e.median_focal_error <= 0.02, "{e:?}");
+}
+
+#[test]
+#[ignore = "issue 18 not met: focal 9.7% off (rotation max 0.36 deg; see the module documentation)"]
+fn no_exif_focal_four_times_the_prior_outline_dropped() {
+    let (sfm, e, _) = reconstruct_outline_dropped(&scene(|c| c.focal = Some(4.0 * 384.0)), |_| {});
+    assert_one_accurate_model(&sfm, &e);
+    assert!(e.median_focal_error <= 0.02, "{e:?}");
 }

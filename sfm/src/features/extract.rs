@@ -22,6 +22,9 @@ use crate::features::descriptor::{quantise, root_sift, sift_descriptor};
 use crate::features::dog::{DetectorConfig, detect_extrema};
 use crate::features::feature_file::{Features, Keypoint};
 use crate::features::orientation::{OrientationConfig, dominant_orientations};
+use crate::features::plain_background::{
+    PlainBackgroundConfig, plain_background, touches_background,
+};
 use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
 
 /// Everything that controls feature extraction.
@@ -56,6 +59,9 @@ pub struct SiftConfig {
     pub detector: DetectorConfig,
     /// Default: `OrientationConfig::default()`.
     pub orientation: OrientationConfig,
+    /// Keypoints on an object's outline against a plain background are dropped
+    /// (`plain_background.rs`). Default: `PlainBackgroundConfig::default()`.
+    pub plain_background: PlainBackgroundConfig,
 }
 
 impl Default for SiftConfig {
@@ -70,6 +76,7 @@ impl Default for SiftConfig {
             scale_space: ScaleSpaceConfig::default(),
             detector: DetectorConfig::default(),
             orientation: OrientationConfig::default(),
+            plain_background: PlainBackgroundConfig::default(),
         }
     }
 }
@@ -95,7 +102,10 @@ impl SiftConfig {
         self.detector.check().map_err(|e| e.within("detector"))?;
         self.orientation
             .check()
-            .map_err(|e| e.within("orientation"))
+            .map_err(|e| e.within("orientation"))?;
+        self.plain_background
+            .check()
+            .map_err(|e| e.within("plain_background"))
     }
 }
 
@@ -114,6 +124,9 @@ pub struct ExtractionReport {
     pub contrast_threshold: f32,
     /// Keypoint locations wanted for this photo's size (0: no target).
     pub target: usize,
+    /// DoG extrema dropped because their blob touches a plain background (at the final
+    /// threshold; 0 when the photo has no plain background).
+    pub outline_dropped: usize,
 }
 
 /// A keypoint with its float descriptor and the rank of its location by response (0 strongest).
@@ -139,6 +152,7 @@ pub fn extract_features_reporting(
     let mut report = ExtractionReport {
         contrast_threshold: config.detector.contrast_threshold,
         target: 0,
+        outline_dropped: 0,
     };
     let mut features = Features {
         width: w as u32,
@@ -166,16 +180,40 @@ pub fn extract_features_reporting(
     }
     let space = build_scale_space(work, &config.scale_space);
     report.target = keypoint_target(work.width, work.height, config);
+    let pb = &config.plain_background;
+    let background = if pb.enabled {
+        plain_background(work, pb)
+    } else {
+        None
+    };
+    // DoG extrema off the outline, and how many were on it.
+    let detect = |detector: &DetectorConfig| {
+        let mut extrema = detect_extrema(&space, detector);
+        let before = extrema.len();
+        if let Some(mask) = &background {
+            extrema.retain(|e| {
+                let octave = &space.octaves[e.octave];
+                // Work-image pixel indices (the offset is the COLMAP-convention position).
+                let x = octave.step * e.x + octave.offset - 0.5;
+                let y = octave.step * e.y + octave.offset - 0.5;
+                let radius = pb.blob_radius_sigmas * e.sigma_octave * octave.step + pb.edge_px;
+                !touches_background(mask, work.width, x, y, radius)
+            });
+        }
+        let dropped = before - extrema.len();
+        (extrema, dropped)
+    };
     let mut detector = config.detector;
-    let mut extrema = detect_extrema(&space, &detector);
+    let (mut extrema, mut dropped) = detect(&detector);
     while extrema.len() < report.target
         && detector.contrast_threshold > config.min_contrast_threshold
     {
         detector.contrast_threshold =
             (0.5 * detector.contrast_threshold).max(config.min_contrast_threshold);
-        extrema = detect_extrema(&space, &detector);
+        (extrema, dropped) = detect(&detector);
     }
     report.contrast_threshold = detector.contrast_threshold;
+    report.outline_dropped = dropped;
     // Rank before describing: only the strongest locations need orientations and descriptors.
     // The sort is stable (ties keep the detection order), and so is the final one below.
     let mut ranked: Vec<usize> = (0..extrema.len()).collect();
