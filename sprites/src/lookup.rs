@@ -13,17 +13,21 @@
 //! - Blocks: consecutive queries in one cell (surface order) are tested against each sprite
 //!   of the leaf at once: first their bounding box against 8 sprites ([`Chunk::box_candidates`]),
 //!   then, for each sprite that meets the box, 4 queries per SIMD register
-//!   ([`QueryLanes::for_each_hit`]).
+//!   ([`QueryLanes::for_each_shade`]).
 //!
-//! The lane tests only *select candidates*: they keep every sprite whose volume may hold
-//! the point (with a margin), and each candidate is then evaluated by the same scalar code as
-//! the brute-force reference ([`crate::blend::contribution`]), in leaf (user) order. So the
-//! results equal the reference bit for bit whatever the compiler does with the lanes.
+//! The candidate tests only *select candidates*: they keep every sprite whose volume may
+//! hold the point (with a margin). Each candidate is then evaluated in leaf (user) order by
+//! the operations of the brute-force reference ([`crate::blend::contribution`]): one query
+//! at a time by that very code, or 4 queries per register by the same operations in the
+//! same order (no FMA, even in the AVX2 build), down to the pattern filter's texel and
+//! weights, ending in the filter's own last step. So the results equal the reference bit for
+//! bit (tested, for the baseline and the AVX2 builds).
 
 use fresco_pst::octree_texture::{Pool, TAG_CHILD, TAG_LEAF, cell, payload, tag};
 
-use crate::blend::{Blend, Query};
-use crate::sprite::Prepared;
+use crate::blend::{Blend, Query, shade};
+use crate::pattern::{ONE, Pattern};
+use crate::sprite::{BlendMode, Prepared};
 use crate::tree::NO_SPRITE;
 
 /// Sprites tested at once.
@@ -241,22 +245,26 @@ impl QueryLanes {
         true
     }
 
-    /// Calls `hit(k, u0, u1, att, rho2)` for each query `k` of the block (in order) that
-    /// sprite `s` contributes to, with what [`crate::blend::contribution`] computes before
-    /// [`crate::blend::shade`]: the same operations in the same order on 4 queries per
-    /// register, so the same bits. `wp`, `hp`: the pattern's size in texels.
+    /// Calls `hit(k, c)` for each query `k` of the block (in order) that sprite `s` (pattern
+    /// `pat`) contributes to, with `c` what [`crate::blend::contribution`] returns there: the
+    /// same operations in the same order on 4 queries per register, so the same bits. Where
+    /// the pattern is magnified (the common case), the bilinear filter's texel and weights
+    /// ([`crate::pattern::Level::bilinear_fixed`]) are computed in the lanes too, and each
+    /// query ends in the filter's own last step ([`crate::pattern::Level::sum_at`]).
     #[cfg(target_arch = "x86_64")]
-    #[inline]
-    pub(crate) fn for_each_hit(
+    #[inline(always)]
+    pub(crate) fn for_each_shade(
         &self,
         s: &Prepared,
-        wp: f32,
-        hp: f32,
+        pat: &Pattern,
         b: &Blend,
-        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+        mut hit: impl FnMut(usize, [f32; 4]),
     ) {
         use std::arch::x86_64::*;
         let r = &s.inv;
+        let (wp, hp) = (pat.width() as f32, pat.height() as f32);
+        let level = &pat.levels[0];
+        let single = pat.levels.len() == 1;
         for g in (0..self.len).step_by(4) {
             let valid = if self.len - g >= 4 {
                 0xf
@@ -265,9 +273,11 @@ impl QueryLanes {
             };
             let (mut u0, mut u1, mut att, mut fa, mut fb) =
                 ([0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4]);
+            let (mut xi, mut yi) = ([0i32; 4], [0i32; 4]);
+            let mut w = [[0i32; 4]; 4];
             // SAFETY: SSE2 is part of the x86-64 baseline; the loads read lanes g..g + 4 of
             // arrays of BLOCK floats (g + 4 <= BLOCK: BLOCK is a multiple of 4), the stores
-            // write arrays of 4 floats.
+            // write arrays of 4 floats or integers.
             let mut mask = unsafe {
                 let ld = |v: &[f32; BLOCK]| _mm_loadu_ps(v.as_ptr().add(g));
                 let set = |v: f32| _mm_set1_ps(v);
@@ -296,10 +306,10 @@ impl QueryLanes {
                         ),
                         _mm_mul_ps(set(s.normal[2]), n[2]),
                     );
-                    let w = _mm_div_ps(_mm_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
-                    mask &= !(_mm_movemask_ps(_mm_cmple_ps(w, _mm_setzero_ps())) as u32);
+                    let wt = _mm_div_ps(_mm_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
+                    mask &= !(_mm_movemask_ps(_mm_cmple_ps(wt, _mm_setzero_ps())) as u32);
                     // minps gives the second operand for NaN, as f32::min does.
-                    _mm_storeu_ps(att.as_mut_ptr(), _mm_min_ps(w, set(1.0)));
+                    _mm_storeu_ps(att.as_mut_ptr(), _mm_min_ps(wt, set(1.0)));
                     _mm_storeu_ps(u0.as_mut_ptr(), u[0]);
                     _mm_storeu_ps(u1.as_mut_ptr(), u[1]);
                     let dx = [0, 1, 2].map(|a| ld(&self.dx[a]));
@@ -320,13 +330,72 @@ impl QueryLanes {
                         fb.as_mut_ptr(),
                         _mm_add_ps(_mm_mul_ps(uy, uy), _mm_mul_ps(vy, vy)),
                     );
+                    // Level 0's bilinear texel and weights at (u0 + 0.5, 0.5 - u1), as
+                    // Level::bilinear_fixed computes them (see there for each step).
+                    let axis = |v: __m128, size: u32| {
+                        let n = size as f32;
+                        // maxps gives the second operand (-1) for NaN, as f32::max does.
+                        let x = _mm_min_ps(
+                            _mm_max_ps(_mm_sub_ps(_mm_mul_ps(v, set(n)), set(0.5)), set(-1.0)),
+                            set(n),
+                        );
+                        let i = _mm_cvttps_epi32(x);
+                        let i =
+                            _mm_add_epi32(i, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(i), x)));
+                        let f = _mm_sub_ps(x, _mm_cvtepi32_ps(i));
+                        let lo = _mm_cmplt_epi32(i, _mm_setzero_si128());
+                        let last = _mm_set1_epi32(size as i32 - 1);
+                        let hi = _mm_cmpgt_epi32(i, _mm_set1_epi32(size as i32 - 2));
+                        let edge = _mm_or_si128(lo, hi);
+                        let f = _mm_andnot_ps(_mm_castsi128_ps(edge), f);
+                        let i = _mm_or_si128(_mm_andnot_si128(edge, i), _mm_and_si128(hi, last));
+                        (i, f)
+                    };
+                    let (xv, fx) = axis(_mm_add_ps(u[0], set(0.5)), level.width);
+                    let (yv, fy) = axis(_mm_sub_ps(set(0.5), u[1]), level.height);
+                    let q = |v: __m128| {
+                        _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(v, set(ONE as f32)), set(0.5)))
+                    };
+                    let w11 = q(_mm_mul_ps(fx, fy));
+                    let w10 = _mm_sub_epi32(q(fx), w11);
+                    let w01 = _mm_sub_epi32(q(fy), w11);
+                    let w00 = _mm_sub_epi32(
+                        _mm_sub_epi32(_mm_sub_epi32(_mm_set1_epi32(ONE), w10), w01),
+                        w11,
+                    );
+                    let st = |dst: &mut [i32; 4], v: __m128i| {
+                        _mm_storeu_si128(dst.as_mut_ptr().cast(), v)
+                    };
+                    st(&mut xi, xv);
+                    st(&mut yi, yv);
+                    for (dst, v) in w.iter_mut().zip([w00, w10, w01, w11]) {
+                        st(dst, v);
+                    }
                 }
                 mask
             };
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                hit(g + k, u0[k], u1[k], att[k], fa[k].max(fb[k]));
+                let rho2 = fa[k].max(fb[k]);
+                let c = if rho2 <= 1.0 || single {
+                    // Pattern::filter_sq's magnified branch, with the lanes' texel and
+                    // weights.
+                    let (sk, tk) = (u0[k] + 0.5, 0.5 - u1[k]);
+                    let f = if pat.may_cover(0, sk, tk) {
+                        level.sum_at(
+                            xi[k] as usize,
+                            yi[k] as usize,
+                            [w[0][k], w[1][k], w[2][k], w[3][k]],
+                        )
+                    } else {
+                        [0.0; 4]
+                    };
+                    f.map(|v| v * att[k])
+                } else {
+                    shade(pat, u0[k], u1[k], att[k], rho2)
+                };
+                hit(g + k, c);
             }
         }
     }
@@ -334,15 +403,15 @@ impl QueryLanes {
     /// The same lane by lane, elsewhere.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    pub(crate) fn for_each_hit(
+    pub(crate) fn for_each_shade(
         &self,
         s: &Prepared,
-        wp: f32,
-        hp: f32,
+        pat: &Pattern,
         b: &Blend,
-        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+        mut hit: impl FnMut(usize, [f32; 4]),
     ) {
         let r = &s.inv;
+        let (wp, hp) = (pat.width() as f32, pat.height() as f32);
         for k in 0..self.len {
             let u = s.local([self.p[0][k], self.p[1][k], self.p[2][k]]);
             if u[0].abs() > 0.5 || u[1].abs() > 0.5 || u[2].abs() > 0.5 {
@@ -360,13 +429,8 @@ impl QueryLanes {
             };
             let (ux, vx) = (d(&self.dx, 0) * wp, d(&self.dx, 1) * hp);
             let (uy, vy) = (d(&self.dy, 0) * wp, d(&self.dy, 1) * hp);
-            hit(
-                k,
-                u[0],
-                u[1],
-                w.min(1.0),
-                (ux * ux + vx * vx).max(uy * uy + vy * vy),
-            );
+            let rho2 = (ux * ux + vx * vx).max(uy * uy + vy * vy);
+            hit(k, shade(pat, u[0], u[1], w.min(1.0), rho2));
         }
     }
 }
@@ -381,6 +445,8 @@ pub(crate) struct Flat {
     /// `chunks_per_vector` chunks per leaf vector, by vector index.
     chunks: Vec<Chunk>,
     chunks_per_vector: usize,
+    /// Whether every sprite in a leaf blends "over" (no blobby or Voronoi runs, no add).
+    pub(crate) all_over: bool,
 }
 
 /// Where a descent ended: the leaf vector (if the cell is a leaf) and the cell's level.
@@ -409,7 +475,12 @@ impl Flat {
                 chunks[first + k / LANES].set(k % LANES, id, &prepared[id as usize]);
             }
         }
+        let all_over = vectors
+            .iter()
+            .filter(|&&id| id != NO_SPRITE)
+            .all(|&id| prepared[id as usize].blend == BlendMode::Over);
         Flat {
+            all_over,
             log_n: pool.log_n(),
             cells,
             chunks,
