@@ -23,7 +23,7 @@ use crate::blend::{Blend, BlendConfig, Compositor, Query, composite, contributio
 use crate::error::{Result, SpriteError};
 use crate::lookup::{BLOCK, Flat, QueryLanes};
 use crate::pattern::Pattern;
-use crate::sprite::{Prepared, Sprite, meets_box, overlap_in_box};
+use crate::sprite::{BlendMode, Prepared, Sprite, meets_box, overlap_in_box};
 
 /// Marks an unused entry of a leaf vector.
 pub const NO_SPRITE: u32 = u32::MAX;
@@ -621,7 +621,7 @@ impl SpriteTree {
     /// those that meet it are evaluated for each query of the block.
     ///
     /// On x86-64 with AVX2 (detected at run time) the same code is compiled with AVX2
-    /// enabled: VEX encoding and three-operand instructions in the lanes.
+    /// enabled: VEX encoding and 8 queries per register in the lanes.
     /// FMA stays off, so every operation rounds as in the SSE2 and scalar paths: the same
     /// bits.
     pub fn lookup_many(&self, queries: &[Query], out: &mut [[f32; 4]]) {
@@ -632,7 +632,7 @@ impl SpriteTree {
             unsafe { self.lookup_many_avx2(queries, out) };
             return;
         }
-        self.lookup_many_in(queries, out);
+        self.lookup_many_in::<false>(queries, out);
     }
 
     /// [`SpriteTree::lookup_many`] with the baseline instructions only (SSE2 on x86-64),
@@ -640,7 +640,7 @@ impl SpriteTree {
     #[doc(hidden)]
     pub fn lookup_many_baseline(&self, queries: &[Query], out: &mut [[f32; 4]]) {
         assert_eq!(queries.len(), out.len(), "one output per query");
-        self.lookup_many_in(queries, out);
+        self.lookup_many_in::<false>(queries, out);
     }
 
     /// [`SpriteTree::lookup_many`] compiled with AVX2.
@@ -650,32 +650,32 @@ impl SpriteTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn lookup_many_avx2(&self, queries: &[Query], out: &mut [[f32; 4]]) {
-        self.lookup_many_in(queries, out);
+        self.lookup_many_in::<true>(queries, out);
     }
 
     /// The body of [`SpriteTree::lookup_many`], inlined into each of its two versions.
     #[inline(always)]
-    fn lookup_many_in(&self, queries: &[Query], out: &mut [[f32; 4]]) {
+    fn lookup_many_in<const WIDE: bool>(&self, queries: &[Query], out: &mut [[f32; 4]]) {
         let flat = self.flat();
         let same = |f: [u32; 3], c: &Cell| {
             ((f[0] ^ c.f[0]) | (f[1] ^ c.f[1]) | (f[2] ^ c.f[2])) >> c.shift == 0
         };
         // Whether query point p is in cell c: its f32 inner box decides most points with six
         // comparisons, the exact fixed-point test the rest.
-        let in_cell =
-            |c: &Cell, p: [f32; 3]| c.holds(p) || self.fixed_inside(p).is_some_and(|f| same(f, c));
         let mut last: Option<Cell> = None;
         let mut scratch = Scratch {
             bits: vec![0u32; flat.chunks_per_vector()],
             lanes: QueryLanes::new(),
         };
         let mut i = 0;
+        // The fixed-point point of query i (None: outside the tree) when already known.
+        let mut next: Option<Option<[u32; 3]>> = None;
         while i < queries.len() {
             let p = queries[i].p;
-            let cell = match last {
-                Some(c) if c.holds(p) => c,
-                _ => {
-                    let Some(f) = self.fixed_inside(p) else {
+            let cell = match (next.take(), last) {
+                (None, Some(c)) if c.holds(p) => c,
+                (known, _) => {
+                    let Some(f) = known.unwrap_or_else(|| self.fixed_inside(p)) else {
                         out[i] = [0.0; 4];
                         i += 1;
                         continue;
@@ -691,15 +691,31 @@ impl SpriteTree {
                     }
                 }
             };
-            // The block: the following queries in the same cell.
+            // The block: the following queries in the same cell (the inner box decides most
+            // with six comparisons, the exact fixed-point test the rest).
             let mut j = i + 1;
-            while j < queries.len() && j - i < BLOCK && in_cell(&cell, queries[j].p) {
-                j += 1;
+            while j < queries.len() && j - i < BLOCK {
+                let p = queries[j].p;
+                if cell.holds(p) {
+                    j += 1;
+                    continue;
+                }
+                let f = self.fixed_inside(p);
+                if f.is_some_and(|f| same(f, &cell)) {
+                    j += 1;
+                } else {
+                    next = Some(f);
+                    break;
+                }
             }
             match cell.vector {
-                Some(v) if j - i > 1 => {
-                    self.evaluate_block(flat, v, &queries[i..j], &mut out[i..j], &mut scratch)
-                }
+                Some(v) if j - i > 1 => self.evaluate_block::<WIDE>(
+                    flat,
+                    v,
+                    &queries[i..j],
+                    &mut out[i..j],
+                    &mut scratch,
+                ),
                 Some(v) => out[i] = self.evaluate(flat, v, &queries[i]),
                 None => out[i..j].fill([0.0; 4]),
             }
@@ -739,7 +755,7 @@ impl SpriteTree {
     /// all have normals and footprints ([`QueryLanes`]), else with the reference's scalar
     /// evaluation.
     #[inline(always)]
-    fn evaluate_block(
+    fn evaluate_block<const WIDE: bool>(
         &self,
         flat: &Flat,
         v: u32,
@@ -797,20 +813,21 @@ impl SpriteTree {
             return;
         }
         let blend = &self.blend;
-        if count == 1 {
+        let s = &self.prepared[first as usize];
+        if count == 1 && s.blend != BlendMode::Over {
             // One sprite meets the block (the common case): each query it covers blends it
             // alone.
-            let s = &self.prepared[first as usize];
             let pat = &self.patterns[s.pattern as usize];
-            lanes.for_each_shade(s, pat, blend, |k, c| {
+            lanes.shade_each::<WIDE>(s, pat, blend, |k, c| {
                 let mut acc = Compositor::new();
                 acc.push(s.blend, c, blend);
                 out[k] = acc.finish(blend);
             });
             return;
         }
-        if flat.all_over {
-            // Every sprite blends "over": a compositor holding no run is its colour alone,
+        if flat.all_over || count == 1 {
+            // Every sprite blends "over" (or the one sprite does): a compositor holding no
+            // run is its colour alone,
             // so each query's output (zero so far) is the compositor's colour, blended in
             // place with the same operations.
             for (chunk, &b) in chunks.iter().zip(bits.iter()) {
@@ -820,7 +837,7 @@ impl SpriteTree {
                     b &= b - 1;
                     let s = &self.prepared[chunk.id[lane] as usize];
                     let pat = &self.patterns[s.pattern as usize];
-                    lanes.for_each_shade(s, pat, blend, |k, c| over(&mut out[k], c));
+                    lanes.shade_each::<WIDE>(s, pat, blend, |k, c| over(&mut out[k], c));
                 }
             }
             return;
@@ -834,7 +851,7 @@ impl SpriteTree {
                 b &= b - 1;
                 let s = &self.prepared[chunk.id[lane] as usize];
                 let pat = &self.patterns[s.pattern as usize];
-                lanes.for_each_shade(s, pat, blend, |k, c| acc[k].push(s.blend, c, blend));
+                lanes.shade_each::<WIDE>(s, pat, blend, |k, c| acc[k].push(s.blend, c, blend));
             }
         }
         for (a, o) in acc.into_iter().zip(out) {
