@@ -18,9 +18,9 @@
 //! The candidate tests only *select candidates*: they keep every sprite whose volume may
 //! hold the point (with a margin). Each candidate is then evaluated in leaf (user) order by
 //! the operations of the brute-force reference ([`crate::blend::contribution`]): one query
-//! at a time by that very code, or 4 (SSE2) or 8 (AVX2) queries per register by the same operations in the
-//! same order (no FMA, even in the AVX2 build), down to the pattern filter's texel and
-//! weights, ending in the filter's own last step. So the results equal the reference bit for
+//! at a time by that very code, or 4 (SSE2) or 8 (AVX2) queries per register by the same
+//! operations in the same order (no FMA, even in the AVX2 build), down to the pattern
+//! filter's texel and weights, ending in the filter's own last step. So the results equal the reference bit for
 //! bit (tested, for the baseline and the AVX2 builds).
 
 use fresco_pst::octree_texture::{Pool, TAG_CHILD, TAG_LEAF, cell, payload, tag};

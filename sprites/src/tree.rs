@@ -50,6 +50,8 @@ struct Cell {
     /// A box inside the cell (world units, see [`SpriteTree::cell`]).
     lo: [f32; 3],
     hi: [f32; 3],
+    /// Whether `lo`, `hi` were computed (else the box is empty).
+    boxed: bool,
 }
 
 impl Cell {
@@ -672,7 +674,7 @@ impl SpriteTree {
         let mut next: Option<Option<[u32; 3]>> = None;
         while i < queries.len() {
             let p = queries[i].p;
-            let cell = match (next.take(), last) {
+            let mut cell = match (next.take(), last) {
                 (None, Some(c)) if c.holds(p) => c,
                 (known, _) => {
                     let Some(f) = known.unwrap_or_else(|| self.fixed_inside(p)) else {
@@ -684,7 +686,16 @@ impl SpriteTree {
                         Some(c) if same(f, &c) => c,
                         _ => {
                             let d = flat.descend(f, self.config.max_depth);
-                            let c = self.cell(f, flat.cell_shift(d.level), d.vector);
+                            // The inner box comes once a second query meets the cell
+                            // (random order would pay for it at every query).
+                            let c = Cell {
+                                f,
+                                shift: flat.cell_shift(d.level),
+                                vector: d.vector,
+                                lo: [f32::INFINITY; 3],
+                                hi: [f32::NEG_INFINITY; 3],
+                                boxed: false,
+                            };
                             last = Some(c);
                             c
                         }
@@ -703,6 +714,10 @@ impl SpriteTree {
                 let f = self.fixed_inside(p);
                 if f.is_some_and(|f| same(f, &cell)) {
                     j += 1;
+                    if !cell.boxed {
+                        cell = self.cell(cell.f, cell.shift, cell.vector);
+                        last = Some(cell);
+                    }
                 } else {
                     next = Some(f);
                     break;
@@ -746,6 +761,7 @@ impl SpriteTree {
             vector,
             lo,
             hi,
+            boxed: true,
         }
     }
 
