@@ -174,8 +174,10 @@ enum Run {
     Voronoi { best: f32, rgb: [f32; 3] },
 }
 
+/// `acc = s + (1 - s.a) acc`: what [`Compositor::push`] does for an `over` sprite when no
+/// run is pending.
 #[inline]
-fn over(acc: &mut [f32; 4], s: [f32; 4]) {
+pub(crate) fn over(acc: &mut [f32; 4], s: [f32; 4]) {
     let k = 1.0 - s[3];
     for i in 0..4 {
         acc[i] = s[i] + k * acc[i];

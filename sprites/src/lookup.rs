@@ -13,17 +13,21 @@
 //! - Blocks: consecutive queries in one cell (surface order) are tested against each sprite
 //!   of the leaf at once: first their bounding box against 8 sprites ([`Chunk::box_candidates`]),
 //!   then, for each sprite that meets the box, 4 queries per SIMD register
-//!   ([`QueryLanes::for_each_hit`]).
+//!   ([`QueryLanes::for_each_shade`]).
 //!
-//! The lane tests only *select candidates*: they keep every sprite whose volume may hold
-//! the point (with a margin), and each candidate is then evaluated by the same scalar code as
-//! the brute-force reference ([`crate::blend::contribution`]), in leaf (user) order. So the
-//! results equal the reference bit for bit whatever the compiler does with the lanes.
+//! The candidate tests only *select candidates*: they keep every sprite whose volume may
+//! hold the point (with a margin). Each candidate is then evaluated in leaf (user) order by
+//! the operations of the brute-force reference ([`crate::blend::contribution`]): one query
+//! at a time by that very code, or 4 (SSE2) or 8 (AVX2) queries per register by the same
+//! operations in the same order (no FMA, even in the AVX2 build), down to the pattern
+//! filter's texel and weights, ending in the filter's own last step. So the results equal the reference bit for
+//! bit (tested, for the baseline and the AVX2 builds).
 
 use fresco_pst::octree_texture::{Pool, TAG_CHILD, TAG_LEAF, cell, payload, tag};
 
-use crate::blend::{Blend, Query};
-use crate::sprite::Prepared;
+use crate::blend::{Blend, Query, shade};
+use crate::pattern::{ONE, Pattern};
+use crate::sprite::{BlendMode, Prepared};
 use crate::tree::NO_SPRITE;
 
 /// Sprites tested at once.
@@ -200,6 +204,69 @@ impl Chunk {
     }
 }
 
+/// What the lanes computed for `L` queries of a block and one sprite (all but the last step
+/// of the filter).
+#[cfg(target_arch = "x86_64")]
+struct Group<const L: usize> {
+    u0: [f32; L],
+    u1: [f32; L],
+    att: [f32; L],
+    /// The two squared footprints, whose larger is `rho^2`.
+    fa: [f32; L],
+    fb: [f32; L],
+    /// Level 0's bilinear texel and weights `[w00, w10, w01, w11]`.
+    xi: [i32; L],
+    yi: [i32; L],
+    w: [[i32; L]; 4],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<const L: usize> Group<L> {
+    #[inline(always)]
+    fn new() -> Self {
+        Group {
+            u0: [0.0; L],
+            u1: [0.0; L],
+            att: [0.0; L],
+            fa: [0.0; L],
+            fb: [0.0; L],
+            xi: [0; L],
+            yi: [0; L],
+            w: [[0; L]; 4],
+        }
+    }
+
+    /// Calls `hit(g + k, c)` for each lane `k` of `mask`, `c` as [`crate::blend::shade`]
+    /// computes it: for a magnified pattern, [`Pattern::filter_sq`]'s magnified branch (its
+    /// coverage mask, then [`crate::pattern::Level::sum_at`] with the lanes' texel and
+    /// weights) times the attenuation; else `shade` itself.
+    #[inline(always)]
+    fn emit(&self, mut mask: u32, g: usize, pat: &Pattern, hit: &mut impl FnMut(usize, [f32; 4])) {
+        let single = pat.levels.len() == 1;
+        while mask != 0 {
+            let k = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let rho2 = self.fa[k].max(self.fb[k]);
+            let c = if rho2 <= 1.0 || single {
+                let (s, t) = (self.u0[k] + 0.5, 0.5 - self.u1[k]);
+                let f = if pat.may_cover(0, s, t) {
+                    pat.levels[0].sum_at(
+                        self.xi[k] as usize,
+                        self.yi[k] as usize,
+                        [self.w[0][k], self.w[1][k], self.w[2][k], self.w[3][k]],
+                    )
+                } else {
+                    [0.0; 4]
+                };
+                f.map(|v| v * self.att[k])
+            } else {
+                shade(pat, self.u0[k], self.u1[k], self.att[k], rho2)
+            };
+            hit(g + k, c);
+        }
+    }
+}
+
 /// The queries of a block in structure of arrays (all with a normal and a footprint), to
 /// evaluate one sprite at 4 of them per SSE2 register.
 pub(crate) struct QueryLanes {
@@ -241,34 +308,36 @@ impl QueryLanes {
         true
     }
 
-    /// Calls `hit(k, u0, u1, att, rho2)` for each query `k` of the block (in order) that
-    /// sprite `s` contributes to, with what [`crate::blend::contribution`] computes before
-    /// [`crate::blend::shade`]: the same operations in the same order on 4 queries per
-    /// register, so the same bits. `wp`, `hp`: the pattern's size in texels.
+    /// Calls `hit(k, c)` for each query `k` of the block (in order) that sprite `s` (pattern
+    /// `pat`) contributes to, with `c` what [`crate::blend::contribution`] returns there: the
+    /// same operations in the same order on 4 queries per register, so the same bits. Where
+    /// the pattern is magnified (the common case), the bilinear filter's texel and weights
+    /// ([`crate::pattern::Level::bilinear_fixed`]) are computed in the lanes too, and each
+    /// query ends in the filter's own last step ([`crate::pattern::Level::sum_at`]).
     #[cfg(target_arch = "x86_64")]
-    #[inline]
-    pub(crate) fn for_each_hit(
+    #[inline(always)]
+    pub(crate) fn for_each_shade(
         &self,
         s: &Prepared,
-        wp: f32,
-        hp: f32,
+        pat: &Pattern,
         b: &Blend,
-        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+        mut hit: impl FnMut(usize, [f32; 4]),
     ) {
         use std::arch::x86_64::*;
         let r = &s.inv;
+        let (wp, hp) = (pat.width() as f32, pat.height() as f32);
+        let level = &pat.levels[0];
         for g in (0..self.len).step_by(4) {
             let valid = if self.len - g >= 4 {
                 0xf
             } else {
                 (1u32 << (self.len - g)) - 1
             };
-            let (mut u0, mut u1, mut att, mut fa, mut fb) =
-                ([0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4], [0f32; 4]);
+            let mut out = Group::<4>::new();
             // SAFETY: SSE2 is part of the x86-64 baseline; the loads read lanes g..g + 4 of
             // arrays of BLOCK floats (g + 4 <= BLOCK: BLOCK is a multiple of 4), the stores
-            // write arrays of 4 floats.
-            let mut mask = unsafe {
+            // write arrays of 4 floats or integers.
+            let mask = unsafe {
                 let ld = |v: &[f32; BLOCK]| _mm_loadu_ps(v.as_ptr().add(g));
                 let set = |v: f32| _mm_set1_ps(v);
                 // r[k][0] * v[0] + r[k][1] * v[1] + r[k][2] * v[2], as Prepared::local.
@@ -284,8 +353,8 @@ impl QueryLanes {
                 let d = [0, 1, 2].map(|a| _mm_sub_ps(ld(&self.p[a]), set(s.center[a])));
                 let u = [row(0, &d), row(1, &d), row(2, &d)];
                 let abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff));
-                let out = |x: __m128| _mm_cmpgt_ps(_mm_and_ps(x, abs), set(0.5));
-                let outside = _mm_or_ps(_mm_or_ps(out(u[0]), out(u[1])), out(u[2]));
+                let far = |x: __m128| _mm_cmpgt_ps(_mm_and_ps(x, abs), set(0.5));
+                let outside = _mm_or_ps(_mm_or_ps(far(u[0]), far(u[1])), far(u[2]));
                 let mut mask = valid & !(_mm_movemask_ps(outside) as u32);
                 if mask != 0 {
                     let n = [0, 1, 2].map(|a| ld(&self.n[a]));
@@ -296,12 +365,12 @@ impl QueryLanes {
                         ),
                         _mm_mul_ps(set(s.normal[2]), n[2]),
                     );
-                    let w = _mm_div_ps(_mm_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
-                    mask &= !(_mm_movemask_ps(_mm_cmple_ps(w, _mm_setzero_ps())) as u32);
+                    let wt = _mm_div_ps(_mm_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
+                    mask &= !(_mm_movemask_ps(_mm_cmple_ps(wt, _mm_setzero_ps())) as u32);
                     // minps gives the second operand for NaN, as f32::min does.
-                    _mm_storeu_ps(att.as_mut_ptr(), _mm_min_ps(w, set(1.0)));
-                    _mm_storeu_ps(u0.as_mut_ptr(), u[0]);
-                    _mm_storeu_ps(u1.as_mut_ptr(), u[1]);
+                    _mm_storeu_ps(out.att.as_mut_ptr(), _mm_min_ps(wt, set(1.0)));
+                    _mm_storeu_ps(out.u0.as_mut_ptr(), u[0]);
+                    _mm_storeu_ps(out.u1.as_mut_ptr(), u[1]);
                     let dx = [0, 1, 2].map(|a| ld(&self.dx[a]));
                     let dy = [0, 1, 2].map(|a| ld(&self.dy[a]));
                     let (ux, vx) = (
@@ -313,36 +382,238 @@ impl QueryLanes {
                         _mm_mul_ps(row(1, &dy), set(hp)),
                     );
                     _mm_storeu_ps(
-                        fa.as_mut_ptr(),
+                        out.fa.as_mut_ptr(),
                         _mm_add_ps(_mm_mul_ps(ux, ux), _mm_mul_ps(vx, vx)),
                     );
                     _mm_storeu_ps(
-                        fb.as_mut_ptr(),
+                        out.fb.as_mut_ptr(),
                         _mm_add_ps(_mm_mul_ps(uy, uy), _mm_mul_ps(vy, vy)),
                     );
+                    // Level 0's bilinear texel and weights at (u0 + 0.5, 0.5 - u1), as
+                    // Level::bilinear_fixed computes them (see there for each step).
+                    let axis = |v: __m128, size: u32| {
+                        let n = size as f32;
+                        // maxps gives the second operand (-1) for NaN, as f32::max does.
+                        let x = _mm_min_ps(
+                            _mm_max_ps(_mm_sub_ps(_mm_mul_ps(v, set(n)), set(0.5)), set(-1.0)),
+                            set(n),
+                        );
+                        let i = _mm_cvttps_epi32(x);
+                        let i =
+                            _mm_add_epi32(i, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(i), x)));
+                        let f = _mm_sub_ps(x, _mm_cvtepi32_ps(i));
+                        let lo = _mm_cmplt_epi32(i, _mm_setzero_si128());
+                        let last = _mm_set1_epi32(size as i32 - 1);
+                        let hi = _mm_cmpgt_epi32(i, _mm_set1_epi32(size as i32 - 2));
+                        let edge = _mm_or_si128(lo, hi);
+                        let f = _mm_andnot_ps(_mm_castsi128_ps(edge), f);
+                        let i = _mm_or_si128(_mm_andnot_si128(edge, i), _mm_and_si128(hi, last));
+                        (i, f)
+                    };
+                    let (xv, fx) = axis(_mm_add_ps(u[0], set(0.5)), level.width);
+                    let (yv, fy) = axis(_mm_sub_ps(set(0.5), u[1]), level.height);
+                    let q = |v: __m128| {
+                        _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(v, set(ONE as f32)), set(0.5)))
+                    };
+                    let w11 = q(_mm_mul_ps(fx, fy));
+                    let w10 = _mm_sub_epi32(q(fx), w11);
+                    let w01 = _mm_sub_epi32(q(fy), w11);
+                    let w00 = _mm_sub_epi32(
+                        _mm_sub_epi32(_mm_sub_epi32(_mm_set1_epi32(ONE), w10), w01),
+                        w11,
+                    );
+                    let st = |dst: &mut [i32; 4], v: __m128i| {
+                        _mm_storeu_si128(dst.as_mut_ptr().cast(), v)
+                    };
+                    st(&mut out.xi, xv);
+                    st(&mut out.yi, yv);
+                    for (dst, v) in out.w.iter_mut().zip([w00, w10, w01, w11]) {
+                        st(dst, v);
+                    }
                 }
                 mask
             };
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                hit(g + k, u0[k], u1[k], att[k], fa[k].max(fb[k]));
-            }
+            out.emit(mask, g, pat, &mut hit);
         }
+    }
+
+    /// [`QueryLanes::for_each_shade`] on 8 queries per AVX2 register: the same operations
+    /// (no FMA), so the same bits.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) unsafe fn for_each_shade8(
+        &self,
+        s: &Prepared,
+        pat: &Pattern,
+        b: &Blend,
+        mut hit: impl FnMut(usize, [f32; 4]),
+    ) {
+        use std::arch::x86_64::*;
+        let r = &s.inv;
+        let (wp, hp) = (pat.width() as f32, pat.height() as f32);
+        let level = &pat.levels[0];
+        for g in (0..self.len).step_by(8) {
+            let valid = if self.len - g >= 8 {
+                0xff
+            } else {
+                (1u32 << (self.len - g)) - 1
+            };
+            let mut out = Group::<8>::new();
+            // SAFETY: the CPU has AVX2 (the caller's contract); the loads read lanes g..g + 8
+            // of arrays of BLOCK floats (g + 8 <= BLOCK: BLOCK is a multiple of 8), the
+            // stores write arrays of 8 floats or integers.
+            let mask = unsafe {
+                let ld = |v: &[f32; BLOCK]| _mm256_loadu_ps(v.as_ptr().add(g));
+                let set = |v: f32| _mm256_set1_ps(v);
+                // r[k][0] * v[0] + r[k][1] * v[1] + r[k][2] * v[2], as Prepared::local.
+                let row = |k: usize, v: &[__m256; 3]| {
+                    _mm256_add_ps(
+                        _mm256_add_ps(
+                            _mm256_mul_ps(set(r[k][0]), v[0]),
+                            _mm256_mul_ps(set(r[k][1]), v[1]),
+                        ),
+                        _mm256_mul_ps(set(r[k][2]), v[2]),
+                    )
+                };
+                let d = [0, 1, 2].map(|a| _mm256_sub_ps(ld(&self.p[a]), set(s.center[a])));
+                let u = [row(0, &d), row(1, &d), row(2, &d)];
+                let abs = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+                let far = |x: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_and_ps(x, abs), set(0.5));
+                let outside = _mm256_or_ps(_mm256_or_ps(far(u[0]), far(u[1])), far(u[2]));
+                let mut mask = valid & !(_mm256_movemask_ps(outside) as u32);
+                if mask != 0 {
+                    let n = [0, 1, 2].map(|a| ld(&self.n[a]));
+                    let c = _mm256_add_ps(
+                        _mm256_add_ps(
+                            _mm256_mul_ps(set(s.normal[0]), n[0]),
+                            _mm256_mul_ps(set(s.normal[1]), n[1]),
+                        ),
+                        _mm256_mul_ps(set(s.normal[2]), n[2]),
+                    );
+                    let wt = _mm256_div_ps(_mm256_sub_ps(c, set(b.cos_end)), set(b.fade_range()));
+                    mask &=
+                        !(_mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(wt, _mm256_setzero_ps()))
+                            as u32);
+                    // minps gives the second operand for NaN, as f32::min does.
+                    _mm256_storeu_ps(out.att.as_mut_ptr(), _mm256_min_ps(wt, set(1.0)));
+                    _mm256_storeu_ps(out.u0.as_mut_ptr(), u[0]);
+                    _mm256_storeu_ps(out.u1.as_mut_ptr(), u[1]);
+                    let dx = [0, 1, 2].map(|a| ld(&self.dx[a]));
+                    let dy = [0, 1, 2].map(|a| ld(&self.dy[a]));
+                    let (ux, vx) = (
+                        _mm256_mul_ps(row(0, &dx), set(wp)),
+                        _mm256_mul_ps(row(1, &dx), set(hp)),
+                    );
+                    let (uy, vy) = (
+                        _mm256_mul_ps(row(0, &dy), set(wp)),
+                        _mm256_mul_ps(row(1, &dy), set(hp)),
+                    );
+                    _mm256_storeu_ps(
+                        out.fa.as_mut_ptr(),
+                        _mm256_add_ps(_mm256_mul_ps(ux, ux), _mm256_mul_ps(vx, vx)),
+                    );
+                    _mm256_storeu_ps(
+                        out.fb.as_mut_ptr(),
+                        _mm256_add_ps(_mm256_mul_ps(uy, uy), _mm256_mul_ps(vy, vy)),
+                    );
+                    // Level 0's bilinear texel and weights at (u0 + 0.5, 0.5 - u1), as
+                    // Level::bilinear_fixed computes them (see there for each step).
+                    let axis = |v: __m256, size: u32| {
+                        let n = size as f32;
+                        // maxps gives the second operand (-1) for NaN, as f32::max does.
+                        let x = _mm256_min_ps(
+                            _mm256_max_ps(
+                                _mm256_sub_ps(_mm256_mul_ps(v, set(n)), set(0.5)),
+                                set(-1.0),
+                            ),
+                            set(n),
+                        );
+                        let i = _mm256_cvttps_epi32(x);
+                        let i = _mm256_add_epi32(
+                            i,
+                            _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(
+                                _mm256_cvtepi32_ps(i),
+                                x,
+                            )),
+                        );
+                        let f = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i));
+                        let lo = _mm256_cmpgt_epi32(_mm256_setzero_si256(), i);
+                        let last = _mm256_set1_epi32(size as i32 - 1);
+                        let hi = _mm256_cmpgt_epi32(i, _mm256_set1_epi32(size as i32 - 2));
+                        let edge = _mm256_or_si256(lo, hi);
+                        let f = _mm256_andnot_ps(_mm256_castsi256_ps(edge), f);
+                        let i = _mm256_or_si256(
+                            _mm256_andnot_si256(edge, i),
+                            _mm256_and_si256(hi, last),
+                        );
+                        (i, f)
+                    };
+                    let (xv, fx) = axis(_mm256_add_ps(u[0], set(0.5)), level.width);
+                    let (yv, fy) = axis(_mm256_sub_ps(set(0.5), u[1]), level.height);
+                    let q = |v: __m256| {
+                        _mm256_cvttps_epi32(_mm256_add_ps(
+                            _mm256_mul_ps(v, set(ONE as f32)),
+                            set(0.5),
+                        ))
+                    };
+                    let w11 = q(_mm256_mul_ps(fx, fy));
+                    let w10 = _mm256_sub_epi32(q(fx), w11);
+                    let w01 = _mm256_sub_epi32(q(fy), w11);
+                    let w00 = _mm256_sub_epi32(
+                        _mm256_sub_epi32(_mm256_sub_epi32(_mm256_set1_epi32(ONE), w10), w01),
+                        w11,
+                    );
+                    let st = |dst: &mut [i32; 8], v: __m256i| {
+                        _mm256_storeu_si256(dst.as_mut_ptr().cast(), v)
+                    };
+                    st(&mut out.xi, xv);
+                    st(&mut out.yi, yv);
+                    for (dst, v) in out.w.iter_mut().zip([w00, w10, w01, w11]) {
+                        st(dst, v);
+                    }
+                }
+                mask
+            };
+            out.emit(mask, g, pat, &mut hit);
+        }
+    }
+
+    /// [`QueryLanes::for_each_shade8`] when `WIDE` (only [`crate::SpriteTree::lookup_many`]'s
+    /// AVX2 copy sets it, once the CPU was found to have AVX2), else
+    /// [`QueryLanes::for_each_shade`].
+    #[inline(always)]
+    pub(crate) fn shade_each<const WIDE: bool>(
+        &self,
+        s: &Prepared,
+        pat: &Pattern,
+        b: &Blend,
+        hit: impl FnMut(usize, [f32; 4]),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if WIDE {
+            // SAFETY: WIDE is set only on CPUs with AVX2 (see above).
+            unsafe { self.for_each_shade8(s, pat, b, hit) };
+            return;
+        }
+        self.for_each_shade(s, pat, b, hit);
     }
 
     /// The same lane by lane, elsewhere.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    pub(crate) fn for_each_hit(
+    pub(crate) fn for_each_shade(
         &self,
         s: &Prepared,
-        wp: f32,
-        hp: f32,
+        pat: &Pattern,
         b: &Blend,
-        mut hit: impl FnMut(usize, f32, f32, f32, f32),
+        mut hit: impl FnMut(usize, [f32; 4]),
     ) {
         let r = &s.inv;
+        let (wp, hp) = (pat.width() as f32, pat.height() as f32);
         for k in 0..self.len {
             let u = s.local([self.p[0][k], self.p[1][k], self.p[2][k]]);
             if u[0].abs() > 0.5 || u[1].abs() > 0.5 || u[2].abs() > 0.5 {
@@ -360,13 +631,8 @@ impl QueryLanes {
             };
             let (ux, vx) = (d(&self.dx, 0) * wp, d(&self.dx, 1) * hp);
             let (uy, vy) = (d(&self.dy, 0) * wp, d(&self.dy, 1) * hp);
-            hit(
-                k,
-                u[0],
-                u[1],
-                w.min(1.0),
-                (ux * ux + vx * vx).max(uy * uy + vy * vy),
-            );
+            let rho2 = (ux * ux + vx * vx).max(uy * uy + vy * vy);
+            hit(k, shade(pat, u[0], u[1], w.min(1.0), rho2));
         }
     }
 }
@@ -381,6 +647,8 @@ pub(crate) struct Flat {
     /// `chunks_per_vector` chunks per leaf vector, by vector index.
     chunks: Vec<Chunk>,
     chunks_per_vector: usize,
+    /// Whether every sprite in a leaf blends "over" (no blobby or Voronoi runs, no add).
+    pub(crate) all_over: bool,
 }
 
 /// Where a descent ended: the leaf vector (if the cell is a leaf) and the cell's level.
@@ -409,7 +677,12 @@ impl Flat {
                 chunks[first + k / LANES].set(k % LANES, id, &prepared[id as usize]);
             }
         }
+        let all_over = vectors
+            .iter()
+            .filter(|&&id| id != NO_SPRITE)
+            .all(|&id| prepared[id as usize].blend == BlendMode::Over);
         Flat {
+            all_over,
             log_n: pool.log_n(),
             cells,
             chunks,

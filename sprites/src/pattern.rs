@@ -16,13 +16,15 @@
 //!   exponent bits of `rho^2` and a 256-entry table of `log2` of the mantissa instead of
 //!   `log2f`. It differs from the exact filter by at most 0.46/255 per channel (bound
 //!   derived at [`FIXED_FILTER_BOUND`], tested in `tests::fixed_filter_is_within_bound`).
+//!   Coverage masks (64x64 tiles per level) mark where every texel the filter may read is
+//!   zero: there it returns zero without filtering, the same bits.
 
 use std::sync::LazyLock;
 
 use image::RgbaImage;
 
 /// 1.0 in the fixed-point texels and weights of [`Level::bilinear_fixed`].
-const ONE: i32 = 1 << 14;
+pub(crate) const ONE: i32 = 1 << 14;
 
 /// Largest difference per channel between [`Pattern::filter_sq`] and the exact
 /// [`Pattern::sample_sq`], for channels in [0, 1]:
@@ -54,10 +56,27 @@ fn log2_table(x: f32) -> f32 {
     e as f32 + LOG2_MANTISSA[((bits >> 15) & 0xff) as usize]
 }
 
+/// Tiles per axis of a pattern's coverage masks ([`Pattern::filter_sq`]).
+const COVER_TILES: usize = 64;
+/// Margin (pattern coordinates) by which each tile of a coverage mask is grown before
+/// asking which texels the filter may read there: far above the f32 rounding of `s * w`
+/// (about 1e-7 for `s` in [0, 1]).
+const COVER_MARGIN: f64 = 1e-4;
+
+/// Where a filter over some levels can be non-zero: one bit per tile of a
+/// [`COVER_TILES`]^2 grid over the pattern, row `t`, bit `s`.
+type CoverMask = [u64; COVER_TILES];
+
 /// One pattern with its mip chain (level 0 first, down to 1x1).
 #[derive(Clone, Debug)]
 pub struct Pattern {
     pub levels: Vec<Level>,
+    /// Coverage masks of [`Pattern::filter_sq`]: `cover[0]` for level 0 alone (the magnified
+    /// filter), `cover[1 + l]` for levels `l` and `l + 1` (the trilinear filter whose finer
+    /// level is `l`). A clear bit: every fixed-point texel the filter may read from that tile
+    /// is zero, so the filter's result is exactly `+0.0` and need not be computed (a gear
+    /// leaves its corners, its holes and the gaps between its teeth transparent).
+    cover: Vec<CoverMask>,
 }
 
 /// One mip level.
@@ -89,7 +108,30 @@ impl Pattern {
         for l in &mut levels {
             l.fixed = l.premultiplied_fixed();
         }
-        Pattern { levels }
+        let masks: Vec<CoverMask> = levels.iter().map(Level::cover_mask).collect();
+        let mut cover = vec![masks[0]];
+        for l in 0..masks.len() {
+            let next = masks.get(l + 1).copied().unwrap_or([0; COVER_TILES]);
+            cover.push(std::array::from_fn(|r| masks[l][r] | next[r]));
+        }
+        Pattern { levels, cover }
+    }
+
+    /// Whether the filter over the levels of mask `mask` (see [`Pattern::cover`]) may be
+    /// non-zero at (`s`, `t`). Coordinates outside [0, 1] (or NaN) take the edge tiles, which
+    /// hold the edge texels that the clamped filter reads there.
+    #[inline(always)]
+    pub(crate) fn may_cover(&self, mask: usize, s: f32, t: f32) -> bool {
+        let tile = |v: f32| ((v * COVER_TILES as f32) as i32).clamp(0, COVER_TILES as i32 - 1);
+        (self.cover[mask][tile(t) as usize] >> tile(s)) & 1 != 0
+    }
+
+    /// The level of detail of the trilinear filter for a footprint `rho2 > 1` (level-0
+    /// texels squared), clamped to the last level.
+    #[inline(always)]
+    fn lod(&self, rho2: f32) -> f32 {
+        // log2 rho = log2(rho^2) / 2; rho2 > 1 is normal, or +inf (the last level).
+        (0.5 * log2_table(rho2)).min((self.levels.len() - 1) as f32)
     }
 
     /// Bytes of all levels (4 per texel: the RGBA8 a GPU would hold; the CPU's fixed-point
@@ -122,19 +164,44 @@ impl Pattern {
 
     /// The lookups' filter: [`Pattern::sample_sq`] in fixed point, with the level of detail
     /// from a table (see the module notes; within [`FIXED_FILTER_BOUND`] of it).
+    ///
+    /// Where the coverage mask says every texel the filter would read is zero, it returns
+    /// `[0.0; 4]` without filtering: the same bits as the filter (a weighted sum of zeros is
+    /// `+0.0`, and so is the trilinear `0 + f * (0 - 0)`), tested in
+    /// `tests::coverage_masks_skip_only_zeros`.
     #[inline(always)]
     pub fn filter_sq(&self, s: f32, t: f32, rho2: f32) -> [f32; 4] {
         if rho2 <= 1.0 || self.levels.len() == 1 {
+            if !self.may_cover(0, s, t) {
+                return [0.0; 4];
+            }
             return self.levels[0].bilinear_fixed(s, t);
         }
         self.trilinear_fixed(s, t, rho2)
     }
 
+    /// [`Pattern::filter_sq`] without the coverage masks (their test's reference).
+    #[cfg(test)]
+    fn filter_sq_unmasked(&self, s: f32, t: f32, rho2: f32) -> [f32; 4] {
+        if rho2 <= 1.0 || self.levels.len() == 1 {
+            return self.levels[0].bilinear_fixed(s, t);
+        }
+        self.trilinear_levels(s, t, self.lod(rho2))
+    }
+
     /// [`Pattern::filter_sq`] when the pattern is minified (`rho2 > 1`).
     #[inline(never)]
     fn trilinear_fixed(&self, s: f32, t: f32, rho2: f32) -> [f32; 4] {
-        // log2 rho = log2(rho^2) / 2; rho2 > 1 is normal, or +inf (the last level).
-        let lod = (0.5 * log2_table(rho2)).min((self.levels.len() - 1) as f32);
+        let lod = self.lod(rho2);
+        if !self.may_cover(1 + lod as usize, s, t) {
+            return [0.0; 4];
+        }
+        self.trilinear_levels(s, t, lod)
+    }
+
+    /// The trilinear filter at level of detail `lod` (in [0, last level]).
+    #[inline(always)]
+    fn trilinear_levels(&self, s: f32, t: f32, lod: f32) -> [f32; 4] {
         let l0 = lod as usize;
         let f = lod - l0 as f32;
         let a = self.levels[l0].bilinear_fixed(s, t);
@@ -245,11 +312,49 @@ impl Level {
         let w10 = q(fx) - w11;
         let w01 = q(fy) - w11;
         let w00 = ONE - w10 - w01 - w11;
+        self.sum_at(xi as usize, yi as usize, [w00, w10, w01, w11])
+    }
+
+    /// The last step of [`Level::bilinear_fixed`]: the texels (`xi`, `yi`) to (`xi + 1`,
+    /// `yi + 1`) (padding included) weighted by `w = [w00, w10, w01, w11]` (2^-14 units).
+    /// `lookup.rs` computes `xi`, `yi` and `w` for several queries at once with the same
+    /// operations and ends here.
+    #[inline(always)]
+    pub(crate) fn sum_at(&self, xi: usize, yi: usize, w: [i32; 4]) -> [f32; 4] {
         let stride = self.width as usize + 1;
-        let i0 = yi as usize * stride + xi as usize;
+        let i0 = yi * stride + xi;
         let row0 = &self.fixed[i0..i0 + 2];
         let row1 = &self.fixed[i0 + stride..i0 + stride + 2];
-        sum_weighted(row0, row1, [w00, w10, w01, w11])
+        sum_weighted(row0, row1, w)
+    }
+
+    /// The tiles of a [`COVER_TILES`]^2 grid over the level where [`Level::bilinear_fixed`]
+    /// may read a non-zero fixed-point texel: at `s` it reads columns `floor(s w - 0.5)` and
+    /// the next, clamped to the edge (the padding column repeats the last), so a tile (grown
+    /// by [`COVER_MARGIN`]) may read the columns from its low end's first to its high end's
+    /// second; rows likewise.
+    fn cover_mask(&self) -> CoverMask {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let stride = w + 1;
+        let nonzero = |x: usize, y: usize| self.fixed[y * stride + x] != [0; 4];
+        // Texels read from tile k of an axis of n texels.
+        let span = |k: usize, n: usize| {
+            let lo = (k as f64 / COVER_TILES as f64 - COVER_MARGIN) * n as f64 - 0.5;
+            let hi = ((k + 1) as f64 / COVER_TILES as f64 + COVER_MARGIN) * n as f64 - 0.5;
+            let clamp = |v: f64| v.clamp(0.0, (n - 1) as f64) as usize;
+            (clamp(lo.floor()), clamp(hi.floor() + 1.0))
+        };
+        std::array::from_fn(|row| {
+            let (y0, y1) = span(row, h);
+            let mut bits = 0u64;
+            for col in 0..COVER_TILES {
+                let (x0, x1) = span(col, w);
+                if (y0..=y1).any(|y| (x0..=x1).any(|x| nonzero(x, y))) {
+                    bits |= 1 << col;
+                }
+            }
+            bits
+        })
     }
 
     /// The premultiplied fixed-point copy with its padding (see [`Level::fixed`]).
@@ -426,5 +531,67 @@ mod tests {
             }
         }
         println!("largest difference {worst} = {}/255", worst * 255.0);
+    }
+
+    /// The coverage masks change no bit of the filter: on the bundled patterns (transparent
+    /// corners, holes, gaps), a sparse random-alpha pattern and a one-texel dot, at random
+    /// coordinates (edges, outside and NaN included) and footprints over every level, the
+    /// masked filter equals the unmasked one bit for bit, and it does skip somewhere.
+    #[test]
+    fn coverage_masks_skip_only_zeros() {
+        let mut rng = fresco_core::Rng::new(61);
+        let sparse = RgbaImage::from_fn(45, 30, |_, _| {
+            let a = if rng.below(9) == 0 {
+                rng.below(256) as u8
+            } else {
+                0
+            };
+            image::Rgba([200, 100, 50, a])
+        });
+        let dot = RgbaImage::from_fn(128, 128, |x, y| {
+            image::Rgba([255, 255, 255, if (x, y) == (77, 20) { 1 } else { 0 }])
+        });
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/sprites/patterns");
+        let mut images = vec![sparse, dot];
+        for name in ["gear_a", "gear_b", "star_a", "blob_a", "cell_a"] {
+            images.push(
+                image::open(dir.join(format!("{name}.png")))
+                    .unwrap()
+                    .to_rgba8(),
+            );
+        }
+        let mut skipped = 0;
+        for img in &images {
+            let p = Pattern::new(img);
+            for i in 0..200_000 {
+                let (s, t) = match i % 1000 {
+                    0 => (f32::NAN, 0.5),
+                    1 => (0.5, f32::INFINITY),
+                    _ => (rng.range(-0.05, 1.05) as f32, rng.range(-0.05, 1.05) as f32),
+                };
+                let rho2 = if i % 2 == 0 {
+                    rng.range(0.0, 1.0) as f32
+                } else {
+                    (rng.range(0.0, 24.0) as f32).exp2()
+                };
+                let (a, b) = (p.filter_sq(s, t, rho2), p.filter_sq_unmasked(s, t, rho2));
+                assert_eq!(
+                    a.map(f32::to_bits),
+                    b.map(f32::to_bits),
+                    "at ({s}, {t}), rho^2 {rho2}"
+                );
+                let lod = if rho2 <= 1.0 {
+                    0
+                } else {
+                    1 + p.lod(rho2) as usize
+                };
+                skipped += !p.may_cover(lod, s, t) as usize;
+            }
+        }
+        assert!(
+            skipped > 100_000,
+            "the masks skipped {skipped} lookups only"
+        );
     }
 }

@@ -140,12 +140,21 @@ fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
     }
     let mut out = vec![[0f32; 4]; walk.len()];
     tree.lookup_many(&walk, &mut out);
-    for (q, a) in walk.iter().zip(&out) {
+    // The baseline-instruction version too (lookup_many runs the AVX2 one where the CPU has
+    // it).
+    let mut baseline = vec![[0f32; 4]; walk.len()];
+    tree.lookup_many_baseline(&walk, &mut baseline);
+    for ((q, a), c) in walk.iter().zip(&out).zip(&baseline) {
         let b = tree.brute_force(&order, q);
         assert_eq!(
             a.map(f32::to_bits),
             b.map(f32::to_bits),
             "lookup_many {q:?}: {a:?} vs {b:?}"
+        );
+        assert_eq!(
+            c.map(f32::to_bits),
+            b.map(f32::to_bits),
+            "lookup_many_baseline {q:?}: {c:?} vs {b:?}"
         );
     }
     covered
