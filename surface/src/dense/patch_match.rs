@@ -40,7 +40,8 @@
 //! At full resolution (the finest scale and the geometric pass) a sweep after the first skips
 //! the *still* pixels: those whose plane did not move in their last sweep while no pixel of
 //! their propagation regions moved since, so that their candidates would be the planes they
-//! already judged (only the refinement's fresh perturbations are given up).
+//! already judged (only the refinement's fresh perturbations are given up); and a propagation
+//! candidate within those tolerances of an earlier one is taken as that one.
 //!
 //! **Speed.** The window cost (most of the time) runs in AVX2 intrinsics when the CPU has them
 //! (detected at run time; the build targets SSE2): a window row is one 8-lane register and its
@@ -125,8 +126,11 @@ pub struct PatchMatchConfig {
     /// skips the pixels whose plane did not move in their last sweep and none of whose
     /// propagation neighbours' planes moved since: their candidates are the planes they
     /// already judged. A plane moved when its depth changed by more than this fraction or
-    /// its normal by more than `still_normal_deg`. 0: sweep every pixel. Default 0.0005
-    /// (about a tenth of a pixel of disparity at the temple's 30-degree baselines).
+    /// its normal by more than `still_normal_deg`. In the same sweeps, a propagation
+    /// candidate within these tolerances of an earlier candidate of the pixel is taken as that
+    /// one (its costs are not computed again). 0: sweep every pixel, and only exact repeats
+    /// are merged. Default 0.0005 (about a tenth of a pixel of disparity at the temple's
+    /// 30-degree baselines).
     pub still_depth: f32,
     /// See `still_depth`, degrees. Default 2.
     pub still_normal_deg: f32,
@@ -792,15 +796,33 @@ impl<'a> Solver<'a> {
             let fu = _mm256_sub_ps(us, _mm256_cvtepi32_ps(ui));
             let fv = _mm256_sub_ps(vs, _mm256_cvtepi32_ps(vi));
             let base = _mm256_add_epi32(_mm256_mullo_epi32(vi, width), ui);
-            // SAFETY: as in the portable code, every lane's 0 <= ui <= width - 2 and
-            // 0 <= vi <= height - 2, so base + iw + 1 < width * height.
+            // Each lane's two horizontal neighbours are one 8-byte element: four 4-element
+            // gathers for the two rows instead of four 8-element ones, then even and odd
+            // floats apart. SAFETY: as in the portable code, every lane's 0 <= ui <= width - 2
+            // and 0 <= vi <= height - 2, so base + iw + 1 < width * height.
             let (p00, p01, p10, p11) = unsafe {
-                (
-                    _mm256_i32gather_ps::<4>(img, base),
-                    _mm256_i32gather_ps::<4>(img.add(1), base),
-                    _mm256_i32gather_ps::<4>(img.add(iw), base),
-                    _mm256_i32gather_ps::<4>(img.add(iw + 1), base),
-                )
+                let (lo, hi) = (
+                    _mm256_castsi256_si128(base),
+                    _mm256_extracti128_si256::<1>(base),
+                );
+                let pairs = |row: *const f32| {
+                    let row = row as *const f64;
+                    let a = _mm256_castpd_ps(_mm256_i32gather_pd::<4>(row, lo));
+                    let b = _mm256_castpd_ps(_mm256_i32gather_pd::<4>(row, hi));
+                    // a = [l0 r0 l1 r1 | l2 r2 l3 r3], b likewise for lanes 4-7: the shuffle
+                    // gives [l0 l1 l4 l5 | l2 l3 l6 l7], the permutation restores the order.
+                    let left = _mm256_shuffle_ps::<0b10_00_10_00>(a, b);
+                    let right = _mm256_shuffle_ps::<0b11_01_11_01>(a, b);
+                    let order = |v: __m256| {
+                        _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(
+                            v,
+                        )))
+                    };
+                    (order(left), order(right))
+                };
+                let (p00, p01) = pairs(img);
+                let (p10, p11) = pairs(img.add(iw));
+                (p00, p01, p10, p11)
             };
             let top = _mm256_add_ps(p00, _mm256_mul_ps(_mm256_sub_ps(p01, p00), fu));
             let bottom = _mm256_add_ps(p10, _mm256_mul_ps(_mm256_sub_ps(p11, p10), fu));
@@ -1129,7 +1151,7 @@ impl<'a> Solver<'a> {
                     colour,
                     iteration,
                     first_step + iteration as i32,
-                    false,
+                    Pass::FullResolution,
                     skip.as_deref(),
                 );
 
@@ -1246,8 +1268,8 @@ impl<'a> Solver<'a> {
         });
     }
 
-    /// One propagation + refinement pass over the pixels of `colour`; `random_trials`: the
-    /// refinement also tries random depths and normals (at the coarsest scale); `skip`:
+    /// One propagation + refinement pass over the pixels of `colour` (what it tries depends on
+    /// `pass`, see [`Pass`]); `skip`:
     /// pixels that keep their plane (settled or still; they still propagate it).
     fn sweep(
         &self,
@@ -1255,9 +1277,15 @@ impl<'a> Solver<'a> {
         colour: usize,
         iteration: usize,
         step: i32,
-        random_trials: bool,
+        pass: Pass,
         skip: Option<&[bool]>,
     ) {
+        let near = (pass == Pass::FullResolution && self.cfg.still_depth > 0.0).then(|| {
+            (
+                self.cfg.still_depth.max(1e-5),
+                self.cfg.still_normal_deg.to_radians().cos(),
+            )
+        });
         let (w, h, half) = (self.width(), self.height(), board.half);
         let [red, black] = &mut board.cells;
         let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
@@ -1313,15 +1341,26 @@ impl<'a> Solver<'a> {
                     // Neighbours often hold the same plane (propagation copies planes, and
                     // the upsampling gives a 2x2 block one coarse plane): a plane moved to `p`
                     // again costs what it cost the first time.
+                    // At full resolution, a plane within the still tolerances of an earlier
+                    // candidate is taken as that candidate (its costs and its plane).
                     let mut matrix = [[MAX_COST; MAX_SOURCES]; 9];
                     for c in 0..count {
                         let (depth, normal) = candidates[c];
                         let same = (0..c).find(|&e| {
-                            candidates[e].1 == normal
-                                && (candidates[e].0 - depth).abs() <= 1e-5 * depth
+                            let (d, n) = candidates[e];
+                            match near {
+                                Some((tolerance, cos_limit)) => {
+                                    (d - depth).abs() <= tolerance * depth
+                                        && dot(&n, &normal) >= cos_limit
+                                }
+                                None => n == normal && (d - depth).abs() <= 1e-5 * depth,
+                            }
                         });
                         matrix[c] = match same {
-                            Some(e) => matrix[e],
+                            Some(e) => {
+                                candidates[c] = candidates[e];
+                                matrix[e]
+                            }
                             None => self.source_costs(x, y, depth, &normal, &win, None),
                         };
                     }
@@ -1374,7 +1413,7 @@ impl<'a> Solver<'a> {
                     ];
                     // Planes drawn at random only help while the search is coarse: a finer
                     // scale or the geometric pass starts from a solution and only perturbs.
-                    let trials = if random_trials {
+                    let trials = if pass == Pass::Coarsest {
                         &trials[..]
                     } else {
                         &trials[..3]
@@ -1491,6 +1530,18 @@ fn halve_mask(mask: &[u8], width: usize, height: usize) -> Vec<u8> {
     out
 }
 
+/// Where a sweep runs, which decides what it tries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    /// The coarsest scale: the refinement also tries random depths and normals.
+    Coarsest,
+    /// A finer scale but the finest: the refinement only perturbs.
+    Finer,
+    /// Full resolution (the finest scale, the geometric pass): as `Finer`, and propagation
+    /// candidates within the still tolerances of an earlier one are taken as that one.
+    FullResolution,
+}
+
 /// Which code the window costs run on. Both give the same depth map bit for bit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
@@ -1601,7 +1652,11 @@ pub fn patch_match_on(
                     colour,
                     iteration,
                     first_step + iteration as i32,
-                    coarsest,
+                    if coarsest {
+                        Pass::Coarsest
+                    } else {
+                        Pass::Finer
+                    },
                     None,
                 );
             }
