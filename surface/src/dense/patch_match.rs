@@ -128,8 +128,8 @@ pub struct PatchMatchConfig {
     /// already judged. A plane moved when its depth changed by more than this fraction or
     /// its normal by more than `still_normal_deg`. In the same sweeps, a propagation
     /// candidate within these tolerances of an earlier candidate of the pixel is taken as that
-    /// one (its costs are not computed again). 0: sweep every pixel, and only exact repeats
-    /// are merged. Default 0.0005 (about a tenth of a pixel of disparity at the temple's
+    /// one (its costs are not computed again), and so is a coarse plane in the upsampling.
+    /// 0: sweep every pixel, and only exact repeats are merged. Default 0.0005 (about a tenth of a pixel of disparity at the temple's
     /// 30-degree baselines).
     pub still_depth: f32,
     /// See `still_depth`, degrees. Default 2.
@@ -1229,11 +1229,21 @@ impl<'a> Solver<'a> {
     /// ACMM's joint bilateral upsampling); a random plane where none has a depth.
     fn upsample(&self, coarse: &Board, coarse_k: &Intrinsics, board: &mut Board) {
         let k = self.problem.k;
+        let near = (self.cfg.still_depth > 0.0).then(|| {
+            (
+                self.cfg.still_depth,
+                self.cfg.still_normal_deg.to_radians().cos(),
+            )
+        });
         self.fill(board, |x, y, win| {
             let to = k.ray(x as f32, y as f32);
             let (cx, cy) = ((x as f32 + 0.5) / 2.0 - 0.5, (y as f32 + 0.5) / 2.0 - 0.5);
             let (x0, y0) = (cx.floor().max(0.0) as usize, cy.floor().max(0.0) as usize);
             let mut best = INVALID;
+            // Coarse neighbours often hold one plane (propagation copies planes): a plane
+            // within the still tolerances of one already costed is not costed again.
+            let mut tried: [(f32, [f32; 3]); 4] = [(0.0, [0.0; 3]); 4];
+            let mut n_tried = 0;
             for (nx, ny) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
                 if nx >= coarse.width || ny >= coarse.height {
                     continue;
@@ -1251,6 +1261,15 @@ impl<'a> Solver<'a> {
                 if !(depth.is_finite() && depth > 0.0) {
                     continue;
                 }
+                if let Some((tolerance, cos_limit)) = near
+                    && tried[..n_tried].iter().any(|(d, n)| {
+                        (d - depth).abs() <= tolerance * depth && dot(n, &h.normal) >= cos_limit
+                    })
+                {
+                    continue;
+                }
+                tried[n_tried] = (depth, h.normal);
+                n_tried += 1;
                 let cost = self.cost(x, y, depth, &h.normal, win);
                 if cost < best.cost {
                     best = Hyp {
