@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
 //! [--eval-only] [key=value ...]` (keys: max_image_size, geometric, scales, iterations,
-//! fine_iterations, finest_iterations, geometric_iterations, settled_px, adaptive_views, top_k, max_sources, min_views,
+//! fine_iterations, finest_iterations, geometric_iterations, settled_px, still_depth, still_normal_deg, adaptive_views, top_k, max_sources, min_views,
 //! support_plane)
 
 use std::path::PathBuf;
@@ -42,6 +42,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "finest_iterations" => pm.finest_iterations = v.parse()?,
             "geometric_iterations" => pm.geometric_iterations = v.parse()?,
             "settled_px" => pm.settled_px = v.parse()?,
+            "still_depth" => pm.still_depth = v.parse()?,
+            "still_normal_deg" => pm.still_normal_deg = v.parse()?,
             "adaptive_views" => pm.adaptive_views = v.parse()?,
             "top_k" => pm.top_k = v.parse()?,
             "max_sources" => config.view_selection.max_sources = v.parse()?,

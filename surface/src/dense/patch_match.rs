@@ -37,6 +37,17 @@
 //! and evaluated, the best kept; then six random refinements (new or perturbed depth, new or
 //! perturbed normal and both; Gipuma/ACMH) with perturbations that shrink each iteration.
 //!
+//! At full resolution (the finest scale and the geometric pass) a sweep after the first skips
+//! the *still* pixels: those whose plane did not move in their last sweep while no pixel of
+//! their propagation regions moved since, so that their candidates would be the planes they
+//! already judged (only the refinement's fresh perturbations are given up); and a propagation
+//! candidate within those tolerances of an earlier one is taken as that one.
+//!
+//! **Speed.** The window cost (most of the time) runs in AVX2 intrinsics when the CPU has them
+//! (detected at run time; the build targets SSE2): a window row is one 8-lane register and its
+//! bilinear neighbours four gathers, with the portable code's operations in the same order and
+//! no FMA, so that both give the same depth maps bit for bit ([`Kernel`]).
+//!
 //! Everything is deterministic: the random draws of pixel `i` in iteration `t` come from
 //! `Rng::for_item(seed ^ t, i)`; pixels of one colour read only the other colour.
 
@@ -111,6 +122,18 @@ pub struct PatchMatchConfig {
     /// there are fewer) keep their plane and are not swept; they still propagate it. 0: sweep
     /// every pixel. Default 0.5.
     pub settled_px: f32,
+    /// At full resolution (the finest scale and the geometric pass), a sweep after the first
+    /// skips the pixels whose plane did not move in their last sweep and none of whose
+    /// propagation neighbours' planes moved since: their candidates are the planes they
+    /// already judged. A plane moved when its depth changed by more than this fraction or
+    /// its normal by more than `still_normal_deg`. In the same sweeps, a propagation
+    /// candidate within these tolerances of an earlier candidate of the pixel is taken as that
+    /// one (its costs are not computed again), and so is a coarse plane in the upsampling.
+    /// 0: sweep every pixel, and only exact repeats are merged. Default 0.0005 (about a tenth of a pixel of disparity at the temple's
+    /// 30-degree baselines).
+    pub still_depth: f32,
+    /// See `still_depth`, degrees. Default 2.
+    pub still_normal_deg: f32,
 }
 
 impl Default for PatchMatchConfig {
@@ -132,6 +155,8 @@ impl Default for PatchMatchConfig {
             geometric_max_px: 3.0,
             geometric_iterations: 2,
             settled_px: 0.5,
+            still_depth: 0.0005,
+            still_normal_deg: 2.0,
         }
     }
 }
@@ -188,6 +213,8 @@ impl PatchMatchConfig {
             ("geometric_weight", self.geometric_weight),
             ("geometric_max_px", self.geometric_max_px),
             ("settled_px", self.settled_px),
+            ("still_depth", self.still_depth),
+            ("still_normal_deg", self.still_normal_deg),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err((name, format!("{v} is not a non-negative number")));
@@ -436,10 +463,18 @@ struct Solver<'a> {
     /// Pixels that are reconstructed (textured, inside the mask, away from the border).
     active: Vec<bool>,
     seed: u64,
+    /// The window costs run on AVX2 (detected at run time, and allowed by the caller).
+    #[cfg(target_arch = "x86_64")]
+    avx2: bool,
 }
 
 impl<'a> Solver<'a> {
-    fn new(problem: &'a Problem<'a>, cfg: &'a PatchMatchConfig, seed: u64) -> Solver<'a> {
+    fn new(
+        problem: &'a Problem<'a>,
+        cfg: &'a PatchMatchConfig,
+        seed: u64,
+        kernel: Kernel,
+    ) -> Solver<'a> {
         let k_inv = problem.k.inverse_matrix();
         let sources = problem
             .sources
@@ -495,7 +530,11 @@ impl<'a> Solver<'a> {
             regions: regions(),
             active: Vec::new(),
             seed,
+            #[cfg(target_arch = "x86_64")]
+            avx2: kernel == Kernel::Fastest && std::arch::is_x86_feature_detected!("avx2"),
         };
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = kernel;
         solver.active = solver.active_pixels();
         solver
     }
@@ -581,7 +620,7 @@ impl<'a> Solver<'a> {
     }
 
     /// `1 - NCC` of the window at (`x`, `y`) against one source through homography `h`.
-    #[inline]
+    #[inline(always)]
     fn source_cost(
         &self,
         src: &SourceGeometry,
@@ -590,22 +629,9 @@ impl<'a> Solver<'a> {
         y: usize,
         win: &Window,
     ) -> f32 {
-        let r = self.cfg.window_radius as f32;
-        let last = *self.offsets.last().unwrap_or(&0) as f32;
-        let (x0, y0) = (x as f32 - r, y as f32 - r);
-        let (x1, y1) = (x as f32 + last, y as f32 + last);
-        for (cx, cy) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
-            let z = h[6] * cx + h[7] * cy + h[8];
-            if z <= 1e-6 {
-                return MAX_COST;
-            }
-            let u = (h[0] * cx + h[1] * cy + h[2]) / z;
-            let v = (h[3] * cx + h[4] * cy + h[5]) / z;
-            // Also rejects NaN.
-            if !(u >= 0.0 && v >= 0.0 && u <= src.max_x && v <= src.max_y) {
-                return MAX_COST;
-            }
-        }
+        let Some((x0, y0)) = self.warped_window_inside(src, h, x, y) else {
+            return MAX_COST;
+        };
         // One window row at a time, LANES samples wide: the projective divisions and the
         // sums vectorise; the lanes past the window's side carry weight 0.
         let step = self.cfg.window_step as f32;
@@ -679,12 +705,147 @@ impl<'a> Solver<'a> {
                 sww[i] += wr[i] * s[i] * s[i];
             }
         }
-        let (sa, sw, sww): (f32, f32, f32) = (sa.iter().sum(), sw.iter().sum(), sww.iter().sum());
-        let var = sww - sw * sw;
-        if var <= 1e-10 {
-            return MAX_COST;
+        ncc_cost(&sa, &sw, &sww)
+    }
+
+    /// The window's first sample (`x0`, `y0`) when the window at (`x`, `y`) warped by `h`
+    /// lies inside the source image (its four corners do, with positive `z`); `None` when it
+    /// leaves it.
+    #[inline(always)]
+    fn warped_window_inside(
+        &self,
+        src: &SourceGeometry,
+        h: &[f32; 9],
+        x: usize,
+        y: usize,
+    ) -> Option<(f32, f32)> {
+        let r = self.cfg.window_radius as f32;
+        let last = *self.offsets.last().unwrap_or(&0) as f32;
+        let (x0, y0) = (x as f32 - r, y as f32 - r);
+        let (x1, y1) = (x as f32 + last, y as f32 + last);
+        for (cx, cy) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+            let z = h[6] * cx + h[7] * cy + h[8];
+            if z <= 1e-6 {
+                return None;
+            }
+            let u = (h[0] * cx + h[1] * cy + h[2]) / z;
+            let v = (h[3] * cx + h[4] * cy + h[5]) / z;
+            // Also rejects NaN.
+            if !(u >= 0.0 && v >= 0.0 && u <= src.max_x && v <= src.max_y) {
+                return None;
+            }
         }
-        (1.0 - sa / var.sqrt()).clamp(0.0, MAX_COST)
+        Some((x0, y0))
+    }
+
+    /// [`Solver::source_cost`] in AVX2 intrinsics: a window row is one 8-lane register, its
+    /// four bilinear neighbours four gathers. The same operations in the same order as the
+    /// portable code (no FMA; lanes past the window's side read the last column's pixels,
+    /// inside the image, and carry weight 0 as there), so the same cost bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn source_cost_avx2(
+        &self,
+        src: &SourceGeometry,
+        h: &[f32; 9],
+        x: usize,
+        y: usize,
+        win: &Window,
+    ) -> f32 {
+        use std::arch::x86_64::*;
+        let Some((x0, y0)) = self.warped_window_inside(src, h, x, y) else {
+            return MAX_COST;
+        };
+        let step = self.cfg.window_step as f32;
+        let img = src.image.data.as_ptr();
+        let iw = src.image.width;
+        let m = self.offsets.len();
+        let (mut cx, mut cy, mut cz) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let xx = x0 + (i.min(m - 1)) as f32 * step;
+            cx[i] = h[0] * xx;
+            cy[i] = h[3] * xx;
+            cz[i] = h[6] * xx;
+        }
+        // SAFETY (loads): the arrays hold LANES = 8 floats each; `win.w`/`win.a` hold LANES
+        // per row for m <= LANES rows.
+        let (cx, cy, cz) = unsafe {
+            (
+                _mm256_loadu_ps(cx.as_ptr()),
+                _mm256_loadu_ps(cy.as_ptr()),
+                _mm256_loadu_ps(cz.as_ptr()),
+            )
+        };
+        let one = _mm256_set1_ps(1.0);
+        let width = _mm256_set1_epi32(iw as i32);
+        let (mut sa, mut sw, mut sww) = (
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+        );
+        for j in 0..m {
+            let yy = y0 + j as f32 * step;
+            let bx = _mm256_set1_ps(h[1] * yy + h[2]);
+            let by = _mm256_set1_ps(h[4] * yy + h[5]);
+            let bz = _mm256_set1_ps(h[7] * yy + h[8]);
+            let iz = _mm256_div_ps(one, _mm256_add_ps(cz, bz));
+            let us = _mm256_mul_ps(_mm256_add_ps(cx, bx), iz);
+            let vs = _mm256_mul_ps(_mm256_add_ps(cy, by), iz);
+            let ui = _mm256_cvttps_epi32(us);
+            let vi = _mm256_cvttps_epi32(vs);
+            let fu = _mm256_sub_ps(us, _mm256_cvtepi32_ps(ui));
+            let fv = _mm256_sub_ps(vs, _mm256_cvtepi32_ps(vi));
+            let base = _mm256_add_epi32(_mm256_mullo_epi32(vi, width), ui);
+            // Each lane's two horizontal neighbours are one 8-byte element: four 4-element
+            // gathers for the two rows instead of four 8-element ones, then even and odd
+            // floats apart. SAFETY: as in the portable code, every lane's 0 <= ui <= width - 2
+            // and 0 <= vi <= height - 2, so base + iw + 1 < width * height.
+            let (p00, p01, p10, p11) = unsafe {
+                let (lo, hi) = (
+                    _mm256_castsi256_si128(base),
+                    _mm256_extracti128_si256::<1>(base),
+                );
+                let pairs = |row: *const f32| {
+                    let row = row as *const f64;
+                    let a = _mm256_castpd_ps(_mm256_i32gather_pd::<4>(row, lo));
+                    let b = _mm256_castpd_ps(_mm256_i32gather_pd::<4>(row, hi));
+                    // a = [l0 r0 l1 r1 | l2 r2 l3 r3], b likewise for lanes 4-7: the shuffle
+                    // gives [l0 l1 l4 l5 | l2 l3 l6 l7], the permutation restores the order.
+                    let left = _mm256_shuffle_ps::<0b10_00_10_00>(a, b);
+                    let right = _mm256_shuffle_ps::<0b11_01_11_01>(a, b);
+                    let order = |v: __m256| {
+                        _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(
+                            v,
+                        )))
+                    };
+                    (order(left), order(right))
+                };
+                let (p00, p01) = pairs(img);
+                let (p10, p11) = pairs(img.add(iw));
+                (p00, p01, p10, p11)
+            };
+            let top = _mm256_add_ps(p00, _mm256_mul_ps(_mm256_sub_ps(p01, p00), fu));
+            let bottom = _mm256_add_ps(p10, _mm256_mul_ps(_mm256_sub_ps(p11, p10), fu));
+            let s = _mm256_add_ps(top, _mm256_mul_ps(_mm256_sub_ps(bottom, top), fv));
+            let (wr, ar) = unsafe {
+                (
+                    _mm256_loadu_ps(win.w.as_ptr().add(j * LANES)),
+                    _mm256_loadu_ps(win.a.as_ptr().add(j * LANES)),
+                )
+            };
+            sa = _mm256_add_ps(sa, _mm256_mul_ps(ar, s));
+            let ws = _mm256_mul_ps(wr, s);
+            sw = _mm256_add_ps(sw, ws);
+            sww = _mm256_add_ps(sww, _mm256_mul_ps(ws, s));
+        }
+        let (mut a, mut b, mut c) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
+        // SAFETY: each array holds 8 floats.
+        unsafe {
+            _mm256_storeu_ps(a.as_mut_ptr(), sa);
+            _mm256_storeu_ps(b.as_mut_ptr(), sw);
+            _mm256_storeu_ps(c.as_mut_ptr(), sww);
+        }
+        ncc_cost(&a, &b, &c)
     }
 
     /// The cost of hypothesis (`depth`, `normal`) at (`x`, `y`) against every source
@@ -693,6 +854,43 @@ impl<'a> Solver<'a> {
     /// mean ignores: not evaluating them saves most of the refinement's work once ACMH's
     /// selection has settled on a few views).
     fn source_costs(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+        weights: Option<&[f32; MAX_SOURCES]>,
+    ) -> [f32; MAX_SOURCES] {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 (`Solver::new` checked it).
+            return unsafe { self.source_costs_avx2(x, y, depth, normal, win, weights) };
+        }
+        self.source_costs_on::<false>(x, y, depth, normal, win, weights)
+    }
+
+    /// [`Solver::source_costs`] compiled for AVX2 (the crate is built for SSE2 only): the
+    /// window's 8-lane rows on one register instead of two. No FMA, and the same operations
+    /// in the same order, so the same costs bit for bit (a test compares both paths).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn source_costs_avx2(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+        weights: Option<&[f32; MAX_SOURCES]>,
+    ) -> [f32; MAX_SOURCES] {
+        self.source_costs_on::<true>(x, y, depth, normal, win, weights)
+    }
+
+    /// [`Solver::source_costs`] with the window cost in AVX2 intrinsics (`AVX2`) or portable
+    /// code.
+    #[inline(always)]
+    fn source_costs_on<const AVX2: bool>(
         &self,
         x: usize,
         y: usize,
@@ -733,7 +931,18 @@ impl<'a> Solver<'a> {
                     h[i * 3 + j] -= src.b[i] * m[j];
                 }
             }
-            *c = self.source_cost(src, &h, x, y, win);
+            *c = {
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    // SAFETY: `AVX2` is only set by `source_costs_avx2`, which runs on CPUs
+                    // with AVX2.
+                    unsafe { self.source_cost_avx2(src, &h, x, y, win) }
+                } else {
+                    self.source_cost(src, &h, x, y, win)
+                }
+                #[cfg(not(target_arch = "x86_64"))]
+                self.source_cost(src, &h, x, y, win)
+            };
             if let Some(check) = check {
                 let error = check
                     .error(&point, x as f32, y as f32)
@@ -874,6 +1083,85 @@ impl<'a> Solver<'a> {
         settled
     }
 
+    /// Per pixel of `colour`, whether its plane moved (see `PatchMatchConfig::still_depth`)
+    /// between `before` (its cells before a sweep) and `board`; written into `moved`.
+    fn mark_moved(&self, before: &[Hyp], board: &Board, colour: usize, moved: &mut [bool]) {
+        let (w, half) = (self.width(), board.half);
+        let cos_limit = self.cfg.still_normal_deg.to_radians().cos();
+        let tolerance = self.cfg.still_depth;
+        moved.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for i in 0..half {
+                let x = 2 * i + ((colour + y) & 1);
+                if x >= w {
+                    continue;
+                }
+                let (a, b) = (&before[y * half + i], &board.cells[colour][y * half + i]);
+                // Cells without a plane (depth 0, normal 0) that stay so did not move.
+                row[x] = (a.depth != b.depth || a.normal != b.normal)
+                    && ((a.depth - b.depth).abs() > tolerance * a.depth.max(b.depth)
+                        || dot(&a.normal, &b.normal) < cos_limit);
+            }
+        });
+    }
+
+    /// The pixels of `colour` that a sweep may skip: `settled` ones, and those that did not
+    /// move in their last sweep while no pixel of their propagation regions moved since.
+    fn still(&self, moved: &[bool], colour: usize, settled: Option<&[bool]>) -> Vec<bool> {
+        let (w, h) = (self.width(), self.height());
+        let mut skip = vec![false; w * h];
+        skip.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for x in (((colour + y) & 1)..w).step_by(2) {
+                let p = y * w + x;
+                if settled.is_some_and(|s| s[p]) {
+                    row[x] = true;
+                    continue;
+                }
+                if moved[p] {
+                    continue;
+                }
+                row[x] = self.regions.iter().flatten().all(|&(dx, dy)| {
+                    let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                    nx < 0
+                        || ny < 0
+                        || nx >= w as i32
+                        || ny >= h as i32
+                        || !moved[ny as usize * w + nx as usize]
+                });
+            }
+        });
+        skip
+    }
+
+    /// `sweeps` propagation + refinement passes over both colours at full resolution,
+    /// starting at refinement `first_step`: after the first, the still pixels (and the
+    /// `settled` ones throughout) are skipped.
+    fn sweeps(&self, board: &mut Board, sweeps: usize, first_step: i32, settled: Option<&[bool]>) {
+        let still = self.cfg.still_depth > 0.0;
+        let mut moved = vec![true; self.width() * self.height()];
+        for iteration in 0..sweeps {
+            for colour in 0..2 {
+                let skip = if iteration > 0 && still {
+                    Some(self.still(&moved, colour, settled))
+                } else {
+                    settled.map(|s| s.to_vec())
+                };
+                let before = still.then(|| board.cells[colour].clone());
+                self.sweep(
+                    board,
+                    colour,
+                    iteration,
+                    first_step + iteration as i32,
+                    Pass::FullResolution,
+                    skip.as_deref(),
+                );
+
+                if let Some(before) = before {
+                    self.mark_moved(&before, board, colour, &mut moved);
+                }
+            }
+        }
+    }
+
     /// Sets every active pixel of `board` to `plane(x, y, window)` (left invalid where it
     /// gives `None`), both colours, rows in parallel: the one loop of `initialise` and
     /// `upsample`.
@@ -941,11 +1229,21 @@ impl<'a> Solver<'a> {
     /// ACMM's joint bilateral upsampling); a random plane where none has a depth.
     fn upsample(&self, coarse: &Board, coarse_k: &Intrinsics, board: &mut Board) {
         let k = self.problem.k;
+        let near = (self.cfg.still_depth > 0.0).then(|| {
+            (
+                self.cfg.still_depth,
+                self.cfg.still_normal_deg.to_radians().cos(),
+            )
+        });
         self.fill(board, |x, y, win| {
             let to = k.ray(x as f32, y as f32);
             let (cx, cy) = ((x as f32 + 0.5) / 2.0 - 0.5, (y as f32 + 0.5) / 2.0 - 0.5);
             let (x0, y0) = (cx.floor().max(0.0) as usize, cy.floor().max(0.0) as usize);
             let mut best = INVALID;
+            // Coarse neighbours often hold one plane (propagation copies planes): a plane
+            // within the still tolerances of one already costed is not costed again.
+            let mut tried: [(f32, [f32; 3]); 4] = [(0.0, [0.0; 3]); 4];
+            let mut n_tried = 0;
             for (nx, ny) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
                 if nx >= coarse.width || ny >= coarse.height {
                     continue;
@@ -963,6 +1261,15 @@ impl<'a> Solver<'a> {
                 if !(depth.is_finite() && depth > 0.0) {
                     continue;
                 }
+                if let Some((tolerance, cos_limit)) = near
+                    && tried[..n_tried].iter().any(|(d, n)| {
+                        (d - depth).abs() <= tolerance * depth && dot(n, &h.normal) >= cos_limit
+                    })
+                {
+                    continue;
+                }
+                tried[n_tried] = (depth, h.normal);
+                n_tried += 1;
                 let cost = self.cost(x, y, depth, &h.normal, win);
                 if cost < best.cost {
                     best = Hyp {
@@ -980,18 +1287,24 @@ impl<'a> Solver<'a> {
         });
     }
 
-    /// One propagation + refinement pass over the pixels of `colour`; `random_trials`: the
-    /// refinement also tries random depths and normals (at the coarsest scale); `settled`:
-    /// pixels that keep their plane (they still propagate it).
+    /// One propagation + refinement pass over the pixels of `colour` (what it tries depends on
+    /// `pass`, see [`Pass`]); `skip`:
+    /// pixels that keep their plane (settled or still; they still propagate it).
     fn sweep(
         &self,
         board: &mut Board,
         colour: usize,
         iteration: usize,
         step: i32,
-        random_trials: bool,
-        settled: Option<&[bool]>,
+        pass: Pass,
+        skip: Option<&[bool]>,
     ) {
+        let near = (pass == Pass::FullResolution && self.cfg.still_depth > 0.0).then(|| {
+            (
+                self.cfg.still_depth.max(1e-5),
+                self.cfg.still_normal_deg.to_radians().cos(),
+            )
+        });
         let (w, h, half) = (self.width(), self.height(), board.half);
         let [red, black] = &mut board.cells;
         let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
@@ -1010,7 +1323,7 @@ impl<'a> Solver<'a> {
             .for_each(|(y, row)| {
                 for (i, cell) in row.iter_mut().enumerate() {
                     let x = 2 * i + ((colour + y) & 1);
-                    if x >= w || !self.active[y * w + x] || settled.is_some_and(|s| s[y * w + x]) {
+                    if x >= w || !self.active[y * w + x] || skip.is_some_and(|s| s[y * w + x]) {
                         continue;
                     }
                     let Some(win) = self.window(x, y) else {
@@ -1047,15 +1360,26 @@ impl<'a> Solver<'a> {
                     // Neighbours often hold the same plane (propagation copies planes, and
                     // the upsampling gives a 2x2 block one coarse plane): a plane moved to `p`
                     // again costs what it cost the first time.
+                    // At full resolution, a plane within the still tolerances of an earlier
+                    // candidate is taken as that candidate (its costs and its plane).
                     let mut matrix = [[MAX_COST; MAX_SOURCES]; 9];
                     for c in 0..count {
                         let (depth, normal) = candidates[c];
                         let same = (0..c).find(|&e| {
-                            candidates[e].1 == normal
-                                && (candidates[e].0 - depth).abs() <= 1e-5 * depth
+                            let (d, n) = candidates[e];
+                            match near {
+                                Some((tolerance, cos_limit)) => {
+                                    (d - depth).abs() <= tolerance * depth
+                                        && dot(&n, &normal) >= cos_limit
+                                }
+                                None => n == normal && (d - depth).abs() <= 1e-5 * depth,
+                            }
                         });
                         matrix[c] = match same {
-                            Some(e) => matrix[e],
+                            Some(e) => {
+                                candidates[c] = candidates[e];
+                                matrix[e]
+                            }
                             None => self.source_costs(x, y, depth, &normal, &win, None),
                         };
                     }
@@ -1108,7 +1432,7 @@ impl<'a> Solver<'a> {
                     ];
                     // Planes drawn at random only help while the search is coarse: a finer
                     // scale or the geometric pass starts from a solution and only perturbs.
-                    let trials = if random_trials {
+                    let trials = if pass == Pass::Coarsest {
                         &trials[..]
                     } else {
                         &trials[..3]
@@ -1137,6 +1461,18 @@ impl<'a> Solver<'a> {
                 }
             });
     }
+}
+
+/// `1 - NCC` from the lane sums of `a_k s_k`, `w_k s_k` and `w_k s_k^2` (see the module
+/// documentation); [`MAX_COST`] when the source's window is flat.
+#[inline(always)]
+fn ncc_cost(sa: &[f32; LANES], sw: &[f32; LANES], sww: &[f32; LANES]) -> f32 {
+    let (sa, sw, sww): (f32, f32, f32) = (sa.iter().sum(), sw.iter().sum(), sww.iter().sum());
+    let var = sww - sw * sw;
+    if var <= 1e-10 {
+        return MAX_COST;
+    }
+    (1.0 - sa / var.sqrt()).clamp(0.0, MAX_COST)
 }
 
 /// The `weights`-weighted mean of `costs`.
@@ -1213,31 +1549,51 @@ fn halve_mask(mask: &[u8], width: usize, height: usize) -> Vec<u8> {
     out
 }
 
+/// Where a sweep runs, which decides what it tries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    /// The coarsest scale: the refinement also tries random depths and normals.
+    Coarsest,
+    /// A finer scale but the finest: the refinement only perturbs.
+    Finer,
+    /// Full resolution (the finest scale, the geometric pass): as `Finer`, and propagation
+    /// candidates within the still tolerances of an earlier one are taken as that one.
+    FullResolution,
+}
+
+/// Which code the window costs run on. Both give the same depth map bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// The widest registers the CPU has (AVX2 when detected at run time).
+    Fastest,
+    /// The build's baseline instructions (SSE2 on x86-64).
+    Portable,
+}
+
 /// Runs PatchMatch on `problem` with `seed`, coarse to fine, and returns its depth map at full
 /// resolution (pixels above `cfg.max_cost` cleared).
 pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> DepthMap {
+    patch_match_on(problem, cfg, seed, Kernel::Fastest)
+}
+
+/// [`patch_match`] with the window costs on `kernel`.
+pub fn patch_match_on(
+    problem: &Problem,
+    cfg: &PatchMatchConfig,
+    seed: u64,
+    kernel: Kernel,
+) -> DepthMap {
     let (w, h) = (problem.image.width, problem.image.height);
     if problem.sources.is_empty() {
         return Board::new(w, h).to_depth_map(cfg.max_cost);
     }
     if let Some(prior) = problem.prior {
         // The geometric pass: full resolution, from the first pass's planes.
-        let solver = Solver::new(problem, cfg, seed ^ 0x6E0_u64);
+        let solver = Solver::new(problem, cfg, seed ^ 0x6E0_u64, kernel);
         let mut board = Board::new(w, h);
         solver.initialise(Some(prior), &mut board);
         let settled = solver.settled(&board);
-        for iteration in 0..cfg.geometric_iterations {
-            for colour in 0..2 {
-                solver.sweep(
-                    &mut board,
-                    colour,
-                    iteration,
-                    4 + iteration as i32,
-                    false,
-                    Some(&settled),
-                );
-            }
-        }
+        solver.sweeps(&mut board, cfg.geometric_iterations, 4, Some(&settled));
         return board.to_depth_map(cfg.max_cost + cfg.geometric_weight);
     }
     // The pyramid: level 0 is the full resolution.
@@ -1286,7 +1642,7 @@ pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> Dept
             prior: None,
         };
         let level_seed = seed ^ (level as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        let solver = Solver::new(&lp, cfg, level_seed);
+        let solver = Solver::new(&lp, cfg, level_seed, kernel);
         let mut board = Board::new(lp.image.width, lp.image.height);
         let coarsest = coarse.is_none();
         let (iterations, first_step) = match &coarse {
@@ -1305,14 +1661,21 @@ pub fn patch_match(problem: &Problem, cfg: &PatchMatchConfig, seed: u64) -> Dept
                 (sweeps, cfg.iterations.min(4) as i32)
             }
         };
-        for iteration in 0..iterations {
+        if level == 0 && !coarsest {
+            solver.sweeps(&mut board, iterations, first_step, None);
+        }
+        for iteration in (0..iterations).filter(|_| level > 0 || coarsest) {
             for colour in 0..2 {
                 solver.sweep(
                     &mut board,
                     colour,
                     iteration,
                     first_step + iteration as i32,
-                    coarsest,
+                    if coarsest {
+                        Pass::Coarsest
+                    } else {
+                        Pass::Finer
+                    },
                     None,
                 );
             }
@@ -1571,5 +1934,62 @@ mod tests {
                 .install(|| patch_match(&problem, &cfg, 3))
         };
         assert_eq!(run(1), run(3));
+    }
+
+    /// The AVX2 window costs are the portable ones bit for bit (no FMA, same order): the
+    /// depth maps of both kernels are equal, first and geometric pass. (On a CPU without AVX2
+    /// both run the portable code.)
+    #[test]
+    fn avx2_and_portable_kernels_give_the_same_map() {
+        let (w, h) = (64, 48);
+        let k = Intrinsics {
+            fx: 60.0,
+            fy: 60.0,
+            cx: 31.5,
+            cy: 23.5,
+        };
+        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.2);
+        let cams = [
+            camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2),
+            camera_at(Vector3::new(-0.25, 0.1, 2.1), 0.2),
+        ];
+        let ref_img = render(&k, w, h, &reference);
+        let imgs: Vec<GreyImage> = cams.iter().map(|c| render(&k, w, h, c)).collect();
+        let maps: Vec<DepthMap> = cams.iter().map(|c| plane_depths(&k, w, h, c)).collect();
+        let cfg = PatchMatchConfig {
+            iterations: 2,
+            scales: 1,
+            settled_px: 0.0,
+            ..Default::default()
+        };
+        let problem = |geometric: bool, prior: Option<&'_ DepthMap>| -> DepthMap {
+            let sources = cams
+                .iter()
+                .zip(&imgs)
+                .zip(&maps)
+                .map(|((c, img), map)| Source {
+                    image: img,
+                    k,
+                    src_from_ref: *c * reference.inverse(),
+                    depth: geometric.then_some(map),
+                })
+                .collect();
+            let p = Problem {
+                image: &ref_img,
+                k,
+                sources,
+                depth_range: (1.0, 4.0),
+                mask: None,
+                prior,
+            };
+            let fast = patch_match_on(&p, &cfg, 5, Kernel::Fastest);
+            let portable = patch_match_on(&p, &cfg, 5, Kernel::Portable);
+            assert_eq!(fast, portable);
+            fast
+        };
+        let first = problem(false, None);
+        assert!(first.valid_fraction() > 0.5, "{}", first.valid_fraction());
+        let second = problem(true, Some(&first));
+        assert!(second.valid_fraction() > 0.5, "{}", second.valid_fraction());
     }
 }

@@ -1,0 +1,86 @@
+//! Issue 13's accuracy and completeness lines, measured against the synthetic generator's
+//! mesh: 24 views at 640x480 with ground-truth cameras, `DenseConfig::default()`, the cloud
+//! judged by `evaluate_cloud` (accuracy as fractions of the bounding-box diagonal,
+//! completeness at 0.5% over the surface seen by >= 2 cameras).
+//!
+//! Each case takes 2-3 CPU-minutes in release, too long for CI: run them with
+//! `cargo test --release -p fresco-surface --test dense_synthetic -- --ignored`.
+//! The bounds are the issue's; a case that misses says by how much in its `#[ignore]` note.
+
+use fresco_core::ply::PlyReader;
+use fresco_core::{NoProgress, colmap};
+use fresco_datasets::{SceneConfig, Shape, write_dataset};
+use fresco_surface::dense::{
+    CloudQuality, DenseConfig, DenseInputs, EvalConfig, ImageSource, densify, evaluate_cloud,
+};
+
+/// Writes the synthetic `scene`, densifies it with the default settings and judges the cloud.
+fn densify_and_judge(scene: &SceneConfig) -> CloudQuality {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    write_dataset(scene, &data, &NoProgress).unwrap();
+    let rec = colmap::read_model(&data.join("sparse")).unwrap();
+    let images = ImageSource::Folder(data.join("images"));
+    let inputs = DenseInputs {
+        reconstruction: &rec,
+        images: &images,
+        masks: None,
+    };
+    let out = dir.path().join("dense");
+    densify(&inputs, &DenseConfig::default(), &out, &NoProgress).unwrap();
+    let mut reader = PlyReader::open(out.join("fused.ply")).unwrap();
+    let mut cloud = Vec::new();
+    while let Some(v) = reader.next_vertex().unwrap() {
+        cloud.push(v.position);
+    }
+    let mesh = fresco_core::ply::read_mesh(data.join("mesh.ply")).unwrap();
+    let views: Vec<_> = rec
+        .images
+        .values()
+        .map(|im| (rec.cameras[&im.camera_id].clone(), im.cam_from_world))
+        .collect();
+    let q = evaluate_cloud(&cloud, &mesh, &views, &EvalConfig::default()).unwrap();
+    eprintln!("{q:#?}");
+    q
+}
+
+fn assert_must_show(q: &CloudQuality, completeness: f64) {
+    assert!(
+        q.accuracy_median <= 0.001 && q.accuracy_p90 <= 0.003,
+        "accuracy median {:.3}% / p90 {:.3}% of the diagonal (goal 0.1% / 0.3%)",
+        100.0 * q.accuracy_median,
+        100.0 * q.accuracy_p90
+    );
+    assert!(
+        q.completeness >= completeness,
+        "completeness {:.1}% (goal {:.0}%)",
+        100.0 * q.completeness,
+        100.0 * completeness
+    );
+}
+
+/// The synthetic temple, 24 views at 640x480.
+#[test]
+#[ignore = "heavy (about 150 CPU-s); misses: p90 0.46%, completeness 89.1% (session 4, lead)"]
+fn temple_24_views_meets_the_accuracy_and_completeness_goals() {
+    let q = densify_and_judge(&SceneConfig {
+        shape: Shape::Temple,
+        views: 24,
+        ..SceneConfig::default()
+    });
+    assert_must_show(&q, 0.95);
+}
+
+/// The synthetic temple with its albedo's contrast reduced 10x: still >= 80% complete at the
+/// same accuracy.
+#[test]
+#[ignore = "heavy (about 140 CPU-s); misses: completeness 71.8%, p90 0.61% (session 5)"]
+fn weakly_textured_temple_is_still_mostly_complete() {
+    let q = densify_and_judge(&SceneConfig {
+        shape: Shape::Temple,
+        views: 24,
+        albedo_contrast: 0.1,
+        ..SceneConfig::default()
+    });
+    assert_must_show(&q, 0.80);
+}
