@@ -95,10 +95,10 @@ pub struct TextureConfig {
     /// is valid. Default 4.
     pub blend_fade_texels: f64,
     /// Level the colours across chart boundaries after fusion (`leveling.rs`: per chart and
-    /// vertex offsets by least squares). Default false: on the real temple it lowers the
-    /// seam discrepancy from 21.0 to 15.8 with the held-out PSNR unchanged (+-0.05 dB), but
-    /// it carries a painted highlight's influence along the seams (mean difference 3.6/255
-    /// inside the disc, over the 3).
+    /// vertex offsets by least squares), before the seam strip. Default false: without the
+    /// strip it lowered the real temple's seam discrepancy from 21.0 to 15.8 with the
+    /// held-out PSNR unchanged (+-0.05 dB), but it carries a painted highlight's influence
+    /// along the seams (mean difference 3.6/255 inside the disc, over the 3).
     pub seam_leveling: bool,
     /// Weight of the smoothness of the leveling offsets along each edge inside a chart,
     /// against a seam edge's colour difference (weight 1). Default 0.1.

@@ -10,8 +10,9 @@
 //!    view's colours ([`crate::transfer::sample_view`]), greedy graph-cut fusion
 //!    ([`crate::fusion::fuse_chart`]).
 //! 6. Seam leveling ([`crate::leveling`]): optionally per chart and vertex colour offsets that
-//!    close the colour steps across chart boundaries (global), then by default the seam
-//!    strip: each side of a seam brought to the mean of both, fading out over a few texels.
+//!    close the colour steps across chart boundaries (global, off by default), then the seam
+//!    strip: each side of a seam brought to the mean of both at every texel along it, the
+//!    correction fading out within two texels (on by default).
 //! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
 //!
 //! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
