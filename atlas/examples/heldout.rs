@@ -4,7 +4,7 @@
 //! ground-truth mesh and cameras. With COLMAP=<model dir> IMAGES=<dir> MESH=<ply> HELD=a,b
 //! a real scene's named photos are held out instead; SEAMS=a.glb,b.glb prints the seam colour
 //! discrepancy of textured GLBs. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
-//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, OUTWIN, OUTNEAR, OUTPATCH, LEVEL, LEVELSMOOTH, NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
+//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, OUTWIN, OUTNEAR, OUTPATCH, LEVEL, LEVELSMOOTH, STRIP (seam strip width, 0 off), DETAIL (seam detail passes), NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
 
 use std::path::Path;
 use std::time::Instant;
@@ -102,6 +102,9 @@ fn main() {
         seam_leveling: var("LEVEL").is_some(),
         seam_leveling_smoothness: var("LEVELSMOOTH")
             .unwrap_or(TextureConfig::default().seam_leveling_smoothness),
+        seam_strip_texels: var("STRIP").unwrap_or(TextureConfig::default().seam_strip_texels),
+        seam_detail_passes: var("DETAIL")
+            .map_or(TextureConfig::default().seam_detail_passes, |v| v as u32),
         exposure_gains: var("NOGAIN").is_none(),
         bicubic: var("BILINEAR").is_none(),
         mip_bias: var("MIPBIAS").unwrap_or(TextureConfig::default().mip_bias),

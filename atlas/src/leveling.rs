@@ -1,6 +1,15 @@
-//! Seam leveling after fusion (after Waechter, Moehrle and Goesele 2014, "Let there be
-//! color!", section 5, global adjustment; here the unknowns are per chart instead of per
-//! view label, since fresco's charts already blend several views inside).
+//! Seam leveling after fusion, in two forms (after Waechter, Moehrle and Goesele 2014, "Let
+//! there be color!", section 5: global adjustment, then local Poisson editing in a strip
+//! along the seams).
+//!
+//! [`seam_strip`] (on by default, in its detail form): each side of every seam is brought to
+//! the mean of both sides at the seam, the correction fading out a few texels inside the
+//! chart (documentation of the function). It changes only texels next to seams.
+//!
+//! [`level_seams`] (opt-in, `seam_leveling`): a global correction. Here the unknowns are per
+//! chart instead of per view label, since fresco's charts already blend several views
+//! inside; that is the wrong granularity where a chart holds an exposure step between the
+//! graph cut's view regions, so it stays off by default.
 //!
 //! Every vertex of every chart gets an additive colour offset `g[chart, vertex]`, one per
 //! channel, interpolated over the chart's faces barycentrically. The offsets minimise, by
@@ -242,6 +251,175 @@ fn solve(rows: &[Row], n: usize) -> Vec<[f32; 3]> {
     x
 }
 
+/// A chart's rectangle in its atlas, with which of its texels belong to it (non-zero).
+pub(crate) struct ChartRect<'a> {
+    pub x0: usize,
+    pub y0: usize,
+    pub width: usize,
+    pub height: usize,
+    pub inside: &'a [u8],
+}
+
+/// Largest colour step (any channel) across a seam edge that the strip closes; a larger one
+/// is content that differs (a wrong surface, a highlight that escaped the outlier test),
+/// which the strip would smear over both sides, and counts as this much.
+const MAX_STRIP_STEP: f32 = 0.25;
+
+/// A seam point seen from one side: its position in the chart's rectangle (texels) and the
+/// offset that brings that side to the mean of both.
+struct Seed {
+    x: f32,
+    y: f32,
+    offset: [f32; 3],
+}
+
+/// What a seam strip pass closes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum StripMode {
+    /// The level of each seam edge: the per-channel median over its samples of the step
+    /// (robust to content misregistered across the seam).
+    Level,
+    /// The step at every sample (one per texel along the seam).
+    Detail,
+}
+
+/// Regularises the inverse-distance-squared weights of the seam points (texels squared):
+/// small, so that a texel takes the offsets of the seam points next to it.
+const SHEPARD_EPSILON: f32 = 0.02;
+
+/// The local seam blend (after mvs-texturing's local seam leveling, a Poisson strip with the
+/// seam pixels set to the mean of both sides): every seam edge (a mesh edge whose two sides
+/// have different texture coordinates) is sampled once per texel; each side is moved to the
+/// mean of both, by half the step ([`StripMode`]: the edge's median step, or each sample's
+/// own), clamped to [`MAX_STRIP_STEP`], and that offset fades out linearly from one texel
+/// off the seam to zero at `width` texels inside the chart. A texel's offset is the average
+/// of the offsets of the seam points within `width`, weighted by
+/// `(1 - d / width)^2 / (d^2 + SHEPARD_EPSILON)` at distance `d` (Shepard's interpolation),
+/// so that it follows the seam point by point. Only texels near seams change: an exposure
+/// step inside a chart, or a highlight away from its seams, stays where it is.
+///
+/// Returns per chart (in the order of `rects`) an offset per texel of its rectangle.
+/// `chart_of[f]` is face `f`'s chart (index into `rects`), `atlas(t, u, v)` reads atlas `t`'s
+/// colour at UV (u, v), `size` is the atlas width in texels.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn seam_strip(
+    mesh: &Mesh,
+    uvs: &[[Uv; 3]],
+    chart_of: &[u32],
+    atlas_of: impl Fn(usize) -> usize,
+    size: u32,
+    read: impl Fn(usize, f64, f64) -> [f32; 3],
+    rects: &[ChartRect],
+    width: f32,
+    mode: StripMode,
+) -> Vec<Vec<[f32; 3]>> {
+    use rayon::prelude::*;
+    let mut seeds: Vec<Vec<Seed>> = (0..rects.len()).map(|_| Vec::new()).collect();
+    let s = size as f64;
+    for (_, sides) in &edges_by_position(mesh) {
+        if sides.len() != 2 {
+            continue;
+        }
+        let (a, b) = (sides[0], sides[1]);
+        let uv = |side: EdgeSide, k: usize| {
+            let u = uvs[side.0][k];
+            [u[0] as f64, u[1] as f64]
+        };
+        let (a0, a1, b0, b1) = (uv(a, a.1), uv(a, a.2), uv(b, b.1), uv(b, b.2));
+        let same = atlas_of(a.0) == atlas_of(b.0)
+            && (0..2).all(|k| (a0[k] - b0[k]).abs() < 1e-6 && (a1[k] - b1[k]).abs() < 1e-6);
+        if same {
+            continue;
+        }
+        let len = |p: [f64; 2], q: [f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) * s;
+        let n = (len(a0, a1).max(len(b0, b1)).ceil() as usize).clamp(2, MAX_SAMPLES_PER_EDGE);
+        let mut points = Vec::with_capacity(n);
+        let mut diffs: [Vec<f32>; 3] = Default::default();
+        for i in 0..n {
+            let x = (i as f64 + 0.5) / n as f64;
+            let lerp =
+                |p: [f64; 2], q: [f64; 2]| [p[0] + x * (q[0] - p[0]), p[1] + x * (q[1] - p[1])];
+            let (ua, ub) = (lerp(a0, a1), lerp(b0, b1));
+            let (ca, cb) = (
+                read(atlas_of(a.0), ua[0], ua[1]),
+                read(atlas_of(b.0), ub[0], ub[1]),
+            );
+            for ch in 0..3 {
+                diffs[ch].push(cb[ch] - ca[ch]);
+            }
+            points.push((ua, ub));
+        }
+        // Side a moves up by half the step, side b down by half.
+        let half_edge = diffs
+            .clone()
+            .map(|mut d| 0.5 * median_of(&mut d).clamp(-MAX_STRIP_STEP, MAX_STRIP_STEP));
+        let (ca, cb) = (chart_of[a.0] as usize, chart_of[b.0] as usize);
+        for (i, (ua, ub)) in points.into_iter().enumerate() {
+            let half = match mode {
+                StripMode::Level => half_edge,
+                StripMode::Detail => {
+                    [0, 1, 2].map(|ch| 0.5 * diffs[ch][i].clamp(-MAX_STRIP_STEP, MAX_STRIP_STEP))
+                }
+            };
+            for (c, p, offset) in [(ca, ua, half), (cb, ub, half.map(|h| -h))] {
+                let r = &rects[c];
+                seeds[c].push(Seed {
+                    x: (p[0] * s) as f32 - r.x0 as f32,
+                    y: (p[1] * s) as f32 - r.y0 as f32,
+                    offset,
+                });
+            }
+        }
+    }
+    rects
+        .par_iter()
+        .zip(seeds)
+        .map(|(r, seeds)| strip_of_chart(r, &seeds, width))
+        .collect()
+}
+
+/// One chart's strip offsets from its seam points (see [`seam_strip`]).
+fn strip_of_chart(r: &ChartRect, seeds: &[Seed], width: f32) -> Vec<[f32; 3]> {
+    let n = r.width * r.height;
+    let mut out = vec![[0f32; 3]; n];
+    if seeds.is_empty() {
+        return out;
+    }
+    let mut weight = vec![0f32; n];
+    let mut nearest = vec![f32::INFINITY; n];
+    let reach = width.ceil() as i64;
+    for seed in seeds {
+        let (cx, cy) = (seed.x.floor() as i64, seed.y.floor() as i64);
+        for y in (cy - reach).max(0)..=(cy + reach).min(r.height as i64 - 1) {
+            for x in (cx - reach).max(0)..=(cx + reach).min(r.width as i64 - 1) {
+                let i = y as usize * r.width + x as usize;
+                if r.inside[i] == 0 {
+                    continue;
+                }
+                let d = (x as f32 + 0.5 - seed.x).hypot(y as f32 + 0.5 - seed.y);
+                if d >= width {
+                    continue;
+                }
+                let w = (1.0 - d / width).powi(2) / (SHEPARD_EPSILON + d * d);
+                weight[i] += w;
+                for (o, s) in out[i].iter_mut().zip(seed.offset) {
+                    *o += w * s;
+                }
+                nearest[i] = nearest[i].min(d);
+            }
+        }
+    }
+    for i in 0..n {
+        if weight[i] > 0.0 {
+            // Full offset within a texel of the seam (the bilinear lookup there reads the
+            // texels around it), fading to zero at `width`.
+            let ramp = ((width - nearest[i]) / (width - 1.0).max(1e-3)).clamp(0.0, 1.0);
+            out[i] = out[i].map(|o| ramp * o / weight[i]);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -302,5 +480,68 @@ mod tests {
         // Equal colours: no offsets.
         let off = level_seams(&mesh, &uvs, &chart_of, |_| 0, 64, |_, _, _| [0.5; 3], 0.1);
         assert!(off.values.iter().all(|v| v.iter().all(|x| x.abs() < 1e-6)));
+    }
+
+    #[test]
+    fn the_seam_strip_meets_both_sides_at_their_mean_and_fades_inside_the_charts() {
+        let (mesh, uvs, chart_of) = two_charts();
+        // A 64-texel atlas: the left chart covers x in [3.2, 28.8], the right one
+        // [35.2, 60.8], both y in [3.2, 28.8]; the seam is x = 28.8 on the left, 35.2 on
+        // the right.
+        let read = |_: usize, u: f64, _: f64| if u < 0.5 { [0.45; 3] } else { [0.55; 3] };
+        let inside = vec![1u8; 64 * 64];
+        let rects: Vec<ChartRect> = (0..2)
+            .map(|_| ChartRect {
+                x0: 0,
+                y0: 0,
+                width: 64,
+                height: 64,
+                inside: &inside,
+            })
+            .collect();
+        let level = StripMode::Level;
+        let off = seam_strip(&mesh, &uvs, &chart_of, |_| 0, 64, read, &rects, 8.0, level);
+        let at = |c: usize, x: usize, y: usize| off[c][y * 64 + x][0];
+        for y in [6, 16, 26] {
+            // At the seam each side moves half-way: 0.45 + 0.05 = 0.55 - 0.05.
+            assert!((at(0, 28, y) - 0.05).abs() < 1e-4, "{}", at(0, 28, y));
+            assert!((at(1, 35, y) + 0.05).abs() < 1e-4, "{}", at(1, 35, y));
+            // Fading inside: smaller 4 texels in, nothing 8 texels in or more.
+            let mid = at(0, 24, y);
+            assert!(mid > 0.01 && mid < 0.04, "{mid}");
+            assert_eq!(at(0, 20, y), 0.0);
+            assert_eq!(at(1, 44, y), 0.0);
+        }
+        // Equal colours: no offsets.
+        let flat = |_: usize, _: f64, _: f64| [0.5; 3];
+        let off = seam_strip(&mesh, &uvs, &chart_of, |_| 0, 64, flat, &rects, 8.0, level);
+        assert!(
+            off.iter()
+                .flatten()
+                .all(|v| v.iter().all(|x| x.abs() < 1e-6))
+        );
+        // A step that grows along the seam (0 at v = 0.05 to 0.2 at v = 0.45): the detail
+        // form follows it texel by texel, the level form takes the edge's median.
+        let ramp = |_: usize, u: f64, v: f64| {
+            let step = (0.5 * (v - 0.05)) as f32;
+            if u < 0.5 { [0.4; 3] } else { [0.4 + step; 3] }
+        };
+        let detail = seam_strip(
+            &mesh,
+            &uvs,
+            &chart_of,
+            |_| 0,
+            64,
+            ramp,
+            &rects,
+            2.0,
+            StripMode::Detail,
+        );
+        for y in [6usize, 16, 26] {
+            let half = 0.25 * ((y as f64 + 0.5) / 64.0 - 0.05) as f32;
+            let got = detail[0][y * 64 + 28][0];
+            assert!((got - half).abs() < 0.01, "row {y}: {got} against {half}");
+            assert_eq!(detail[0][y * 64 + 25][0], 0.0);
+        }
     }
 }

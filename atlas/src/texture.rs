@@ -9,8 +9,10 @@
 //! 5. Per chart, in parallel: texels ([`crate::transfer::rasterise_chart`]), each candidate
 //!    view's colours ([`crate::transfer::sample_view`]), greedy graph-cut fusion
 //!    ([`crate::fusion::fuse_chart`]).
-//! 6. Seam leveling ([`crate::leveling`]): per chart and vertex colour offsets that close
-//!    the colour steps across chart boundaries, added to the fused texels.
+//! 6. Seam leveling ([`crate::leveling`]): optionally per chart and vertex colour offsets that
+//!    close the colour steps across chart boundaries (global, off by default), then the seam
+//!    strip: each side of a seam brought to the mean of both at every texel along it, the
+//!    correction fading out within two texels (on by default).
 //! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
 //!
 //! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
@@ -25,6 +27,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fill::push_pull;
+use crate::leveling::StripMode;
 use crate::transfer::{NONE, rasterise_chart, sample_view};
 use crate::views::{ImageSource, ViewSet, load_views};
 use crate::{TextureConfig, TextureError};
@@ -189,18 +192,18 @@ pub fn texture(
 
     let t = Instant::now();
     let s = size as usize;
+    let mut chart_of = vec![0u32; mesh.faces.len()];
+    for (c, (_, faces)) in charts.iter().enumerate() {
+        for &f in faces {
+            chart_of[f as usize] = c as u32;
+        }
+    }
+    let atlas_of = |f: usize| mesh.face_textures.as_ref().map_or(0, |t| t[f] as usize);
     if config.seam_leveling && !fused.is_empty() {
         progress.begin("levelling seams", 1);
         let filled: Vec<Vec<[f32; 3]>> = (0..atlases as u32)
             .map(|a| assemble(&fused, a, s).0)
             .collect();
-        let mut chart_of = vec![0u32; mesh.faces.len()];
-        for (c, (_, faces)) in charts.iter().enumerate() {
-            for &f in faces {
-                chart_of[f as usize] = c as u32;
-            }
-        }
-        let atlas_of = |f: usize| mesh.face_textures.as_ref().map_or(0, |t| t[f] as usize);
         let offsets = crate::leveling::level_seams(
             &mesh,
             uvs,
@@ -228,6 +231,23 @@ pub fn texture(
                     }
                 }
             });
+        progress.end();
+    }
+    let mut passes = Vec::new();
+    if config.seam_strip_texels > 0.0 {
+        passes.push((config.seam_strip_texels as f32, StripMode::Level));
+    }
+    for _ in 0..config.seam_detail_passes {
+        passes.push((DETAIL_STRIP_TEXELS, StripMode::Detail));
+    }
+    if !fused.is_empty() && !passes.is_empty() {
+        progress.begin("blending seams", passes.len() as u64);
+        for (width, mode) in passes {
+            strip_pass(
+                &mut fused, &mesh, uvs, &chart_of, size, atlases, width, mode,
+            );
+            progress.advance(1);
+        }
         progress.end();
     }
     summary.seconds.leveling = t.elapsed().as_secs_f64();
@@ -258,6 +278,63 @@ pub fn texture(
     summary.seams = crate::seam_discrepancy(&mesh, &textures).unwrap_or_default();
     summary.seconds.fill = t.elapsed().as_secs_f64();
     Ok((TexturedModel { mesh, textures }, masks, summary))
+}
+
+/// Width of the strip of the detail passes, texels: the correction is whole on the texels
+/// around the seam, which the renderer's bilinear lookup there reads, and none two texels in.
+const DETAIL_STRIP_TEXELS: f32 = 2.0;
+
+/// One pass of the seam strip (`leveling::seam_strip`) over the fused charts: the atlases are
+/// assembled, the steps across the seams read from them, and the offsets added to the charts'
+/// photo texels.
+#[allow(clippy::too_many_arguments)]
+fn strip_pass(
+    fused: &mut [ChartOutput],
+    mesh: &Mesh,
+    uvs: &[[Uv; 3]],
+    chart_of: &[u32],
+    size: u32,
+    atlases: usize,
+    width: f32,
+    mode: StripMode,
+) {
+    let s = size as usize;
+    let filled: Vec<Vec<[f32; 3]>> = (0..atlases as u32)
+        .map(|a| assemble(fused, a, s).0)
+        .collect();
+    let rects: Vec<crate::leveling::ChartRect> = fused
+        .iter()
+        .map(|c| crate::leveling::ChartRect {
+            x0: c.x0,
+            y0: c.y0,
+            width: c.width,
+            height: c.height,
+            inside: &c.state,
+        })
+        .collect();
+    let offsets = crate::leveling::seam_strip(
+        mesh,
+        uvs,
+        chart_of,
+        |f| mesh.face_textures.as_ref().map_or(0, |t| t[f] as usize),
+        size,
+        |a, u, v| bilinear(&filled[a.min(filled.len() - 1)], s, u, v),
+        &rects,
+        width,
+        mode,
+    );
+    drop(rects);
+    fused.par_iter_mut().zip(offsets).for_each(|(out, off)| {
+        for (i, g) in off.iter().enumerate() {
+            let state = out.state[i];
+            if state != STATE_PHOTO && state != STATE_BORDER_PHOTO {
+                continue;
+            }
+            for (c, g) in out.colour[i].iter_mut().zip(g) {
+                *c = (*c + g).clamp(0.0, 1.0);
+            }
+        }
+    });
 }
 
 /// Atlas `a` of `s` x `s` texels from the fused charts: colours with holes and gutters

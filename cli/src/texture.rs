@@ -57,6 +57,13 @@ pub struct TextureArgs {
     /// by least squares): smaller seams, at the risk of spreading a highlight's influence.
     #[arg(long)]
     pub level_seams: bool,
+    /// Width of the strip along the seams over which both sides are brought to their mean
+    /// level, texels (0: off).
+    #[arg(long, default_value_t = TextureConfig::default().seam_strip_texels)]
+    pub seam_strip: f64,
+    /// Passes closing the remaining colour step at every texel along the seams (0: off).
+    #[arg(long, default_value_t = TextureConfig::default().seam_detail_passes)]
+    pub seam_detail_passes: u32,
     /// Also write model.obj + model.mtl (with the atlas PNGs).
     #[arg(long)]
     pub obj: bool,
@@ -132,6 +139,8 @@ pub fn run(args: TextureArgs, ctx: &crate::Context) -> anyhow::Result<serde_json
         exposure_gains: !args.no_gains,
         outlier_rejection: !args.no_outliers,
         seam_leveling: args.level_seams,
+        seam_strip_texels: args.seam_strip,
+        seam_detail_passes: args.seam_detail_passes,
         write_obj: args.obj,
         ..TextureConfig::default()
     };
