@@ -117,6 +117,7 @@ fn main() {
             .map_or(TextureConfig::default().unwrap_stretch_iterations, |v| {
                 v as u32
             }),
+        playback_sharpening: var("SHARPEN").unwrap_or(TextureConfig::default().playback_sharpening),
         ..TextureConfig::default()
     };
     let inputs = TextureInputs {
@@ -127,7 +128,12 @@ fn main() {
     };
     let t = Instant::now();
     let cpu0 = cpu_seconds();
-    let (model, _masks, summary) = texture(&inputs, &config, &NoProgress).unwrap();
+    let (mut model, _masks, summary) = texture(&inputs, &config, &NoProgress).unwrap();
+    // GLB=<path>: score that textured model (e.g. MeshLab's, on the same scene) instead.
+    if let Ok(glb) = std::env::var("GLB") {
+        let (mesh, textures) = fresco_core::gltf::read_glb(Path::new(&glb)).unwrap();
+        model = TexturedModel { mesh, textures };
+    }
     let secs = t.elapsed().as_secs_f64();
     let cpu = cpu_seconds() - cpu0;
     let (vmesh, _) = vertex_colors(&inputs, &config, &NoProgress).unwrap();
@@ -136,7 +142,7 @@ fn main() {
         textures: vec![],
     };
     println!(
-        "{} detail {detail}: {} faces, {} charts, seam discrepancy {:.2} (p90 {:.2}) over {:.3} of {:.3}, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, {secs:.2} s wall, {cpu:.2} CPU-s, load {} {:?}",
+        "{} detail {detail}: {} faces, {} charts, seam discrepancy {:.2} (p90 {:.2}) over {:.3} of {:.3}, atlas {} ({} tpu, target {:.1}), coverage {:.4}, outliers {}, misregistration {:.4} texels^2, sharpening {:.4}, {secs:.2} s wall, {cpu:.2} CPU-s, load {} {:?}",
         shape.name(),
         summary.faces,
         summary.charts,
@@ -149,6 +155,8 @@ fn main() {
         summary.target_texels_per_unit,
         summary.coverage,
         summary.outlier_texels,
+        summary.misregistration_texels2,
+        summary.sharpening,
         std::fs::read_to_string("/proc/loadavg")
             .unwrap_or_default()
             .split(' ')
@@ -178,6 +186,9 @@ fn main() {
                 "  {h} {name:8} psnr {:.2} gain-fitted {:.2} ssim {:.4} 1-ncc {:.5} px {}",
                 c.psnr, c.psnr_gain, c.ssim_gain, c.one_minus_ncc, c.pixels
             );
+            if std::env::var("DIAG").is_ok() && name == "texture" {
+                diagnose(&r, &photo, &cm, &c.gains, &m.mesh);
+            }
             if std::env::var("SAVE").is_ok() && name == "texture" {
                 let diff = image::RgbImage::from_fn(photo.width(), photo.height(), |x, y| {
                     let (a, b) = (r.image.get_pixel(x, y), photo.get_pixel(x, y));
@@ -205,6 +216,167 @@ fn main() {
             .save(format!("/tmp/{}_atlas.png", shape.name()))
             .unwrap();
     }
+}
+
+/// DIAG=1: splits the gain-fitted squared error of a rendering by cause: low against high
+/// spatial frequency (a 9x9 masked box mean of the signed error: exposure and leveling
+/// differences are smooth, blur and misregistration are not), pixels on the photo's edges
+/// (top 10% of the luma gradient), pixels within 3 pixels of the silhouette, and pixels of
+/// faces that touch a chart boundary (seam).
+fn diagnose(
+    r: &fresco_core::raster::Render,
+    photo: &image::RgbImage,
+    mask: &[bool],
+    gains: &[f64; 3],
+    mesh: &fresco_core::Mesh,
+) {
+    let (w, h) = (photo.width() as usize, photo.height() as usize);
+    let d: Vec<[f64; 3]> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as u32, (i / w) as u32);
+            let (a, b) = (r.image.get_pixel(x, y), photo.get_pixel(x, y));
+            [0, 1, 2].map(|c| (a[c] as f64 * gains[c]).clamp(0.0, 255.0) - b[c] as f64)
+        })
+        .collect();
+    let se = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
+    let idx: Vec<usize> = (0..w * h).filter(|&i| mask[i]).collect();
+    let total: f64 = idx.iter().map(|&i| se(&d[i])).sum();
+    let psnr = |s: f64, n: usize| 10.0 * (255.0f64.powi(2) / (s / (3.0 * n as f64))).log10();
+    // Low-frequency part: masked 9x9 mean.
+    let rad = 4i64;
+    let mut low = 0.0;
+    for &i in &idx {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        let (mut s, mut n) = ([0.0; 3], 0.0);
+        for yy in (y - rad).max(0)..=(y + rad).min(h as i64 - 1) {
+            for xx in (x - rad).max(0)..=(x + rad).min(w as i64 - 1) {
+                let j = yy as usize * w + xx as usize;
+                if mask[j] {
+                    for c in 0..3 {
+                        s[c] += d[j][c];
+                    }
+                    n += 1.0;
+                }
+            }
+        }
+        low += se(&s.map(|v| v / n));
+    }
+    // Photo edges: luma gradient (central differences).
+    let luma = |x: usize, y: usize| {
+        let p = photo.get_pixel(x as u32, y as u32);
+        0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64
+    };
+    let grad: Vec<f64> = idx
+        .iter()
+        .map(|&i| {
+            let (x, y) = (i % w, i / w);
+            let gx = luma((x + 1).min(w - 1), y) - luma(x.saturating_sub(1), y);
+            let gy = luma(x, (y + 1).min(h - 1)) - luma(x, y.saturating_sub(1));
+            (gx * gx + gy * gy).sqrt()
+        })
+        .collect();
+    let mut sorted = grad.clone();
+    sorted.sort_by(f64::total_cmp);
+    let cut = sorted[sorted.len() * 9 / 10];
+    let edge_se: f64 = idx
+        .iter()
+        .zip(&grad)
+        .filter(|&(_, &g)| g >= cut)
+        .map(|(&i, _)| se(&d[i]))
+        .sum();
+    // Silhouette band.
+    let near_sil = |i: usize| {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        (-3..=3).any(|dy: i64| {
+            (-3..=3).any(|dx: i64| {
+                let (xx, yy) = (x + dx, y + dy);
+                xx < 0
+                    || yy < 0
+                    || xx >= w as i64
+                    || yy >= h as i64
+                    || r.visibility.face_ids[yy as usize * w + xx as usize]
+                        == fresco_core::raster::NO_FACE
+            })
+        })
+    };
+    let sil: Vec<usize> = idx.iter().copied().filter(|&i| near_sil(i)).collect();
+    let sil_se: f64 = sil.iter().map(|&i| se(&d[i])).sum();
+    // Pixels within 2 pixels of a seam: a pixel of another chart (charts: faces joined
+    // across edges, by position, whose two sides carry the same UVs).
+    let nf = mesh.faces.len();
+    let mut parent: Vec<usize> = (0..nf).collect();
+    fn root(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    if let Some(uvs) = &mesh.corner_uvs {
+        let key = |v: u32| {
+            let c = mesh.positions[v as usize].coords;
+            (c.x.to_bits(), c.y.to_bits(), c.z.to_bits())
+        };
+        type Side = (usize, [f32; 2], [f32; 2]);
+        let mut edges: std::collections::HashMap<_, Vec<Side>> = Default::default();
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (k, (k + 1) % 3);
+                let (ka, kb) = (key(face[a]), key(face[b]));
+                let (ua, ub) = (uvs[f][a], uvs[f][b]);
+                let (lo, hi, ul, uh) = if ka < kb {
+                    (ka, kb, ua, ub)
+                } else {
+                    (kb, ka, ub, ua)
+                };
+                edges.entry((lo, hi)).or_default().push((f, ul, uh));
+            }
+        }
+        for list in edges.values() {
+            if list.len() == 2 && list[0].1 == list[1].1 && list[0].2 == list[1].2 {
+                let (a, b) = (root(&mut parent, list[0].0), root(&mut parent, list[1].0));
+                parent[a] = b;
+            }
+        }
+    }
+    let chart: Vec<usize> = (0..nf).map(|f| root(&mut parent, f)).collect();
+    let chart_at = |i: usize| {
+        let f = r.visibility.face_ids[i];
+        ((f as usize) < nf).then(|| chart[f as usize])
+    };
+    let seam: Vec<usize> = idx
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            let own = chart_at(i);
+            (-2..=2).any(|dy: i64| {
+                (-2..=2).any(|dx: i64| {
+                    let (xx, yy) = (x + dx, y + dy);
+                    xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64 && {
+                        let o = chart_at(yy as usize * w + xx as usize);
+                        o.is_some() && o != own
+                    }
+                })
+            })
+        })
+        .collect();
+    let seam_se: f64 = seam.iter().map(|&i| se(&d[i])).sum();
+    let n = idx.len();
+    println!(
+        "    diag: psnr {:.2}; low-frequency {:.1}% of the SE (psnr of the low part alone {:.2}, high part alone {:.2}); photo edges (top 10% gradient) {:.1}%; silhouette band (3 px, {:.1}% of pixels) {:.1}%, psnr without it {:.2}; seam band (2 px, {:.1}% of pixels) {:.1}%, psnr without them {:.2}",
+        psnr(total, n),
+        100.0 * low / total,
+        psnr(low, n),
+        psnr(total - low, n),
+        100.0 * edge_se / total,
+        100.0 * sil.len() as f64 / n as f64,
+        100.0 * sil_se / total,
+        psnr(total - sil_se, n - sil.len()),
+        100.0 * seam.len() as f64 / n as f64,
+        100.0 * seam_se / total,
+        psnr(total - seam_se, n - seam.len()),
+    );
 }
 
 /// User + system CPU seconds of this process so far, all threads (Linux /proc; 0 elsewhere).

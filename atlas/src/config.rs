@@ -116,6 +116,17 @@ pub struct TextureConfig {
     /// 13.2, gain-fitted PSNR 16.50 / 19.20 -> 16.53 / 19.19 dB, SSIM -0.008 / -0.013;
     /// one pass gives 13.3).
     pub seam_detail_passes: u32,
+    /// Strength `a` of the sharpening `(1 + 4a) c - a (4 neighbours)` applied to the
+    /// finished atlas' photo texels to undo the blur of a viewer's bilinear lookup, when the
+    /// views agree exactly; scaled by `1 - d^2` for a mean squared misregistration of `d^2`
+    /// texels^2 between the views (none from one texel on: detail the views do not agree on
+    /// is not amplified). 0 turns it off. Default 1/6: the second-order inverse of the
+    /// Gram matrix `[1/6, 2/3, 1/6]` of linear interpolation, which makes the bilinear
+    /// playback of the texels a least-squares fit of the surface's colour. (Synthetic blob /
+    /// temple / torus at 640x480, views 5 / 17 held out, gain-fitted:
+    /// 37.43 -> 39.3, 32.35 -> 33.1, 37.16 -> 38.3 dB; real temple unchanged, its views are
+    /// 1.3 texels apart: `bench/RESULTS.md` issue 14, session 6.)
+    pub playback_sharpening: f64,
     /// Images (by name) kept out of the texture, e.g. held out for evaluation. Default empty.
     pub exclude_images: Vec<String>,
     /// Also write `model.obj` + `model.mtl` beside the GLB. Default false.
@@ -153,6 +164,7 @@ impl Default for TextureConfig {
             seam_leveling_smoothness: 0.1,
             seam_strip_texels: 0.0,
             seam_detail_passes: 2,
+            playback_sharpening: 1.0 / 6.0,
             exclude_images: Vec::new(),
             write_obj: false,
         }
@@ -298,6 +310,14 @@ impl TextureConfig {
                 format!("{} is outside [0, 64] texels", self.seam_strip_texels),
             );
         }
+        if !(self.playback_sharpening.is_finite()
+            && (0.0..=1.0).contains(&self.playback_sharpening))
+        {
+            return bad(
+                "playback_sharpening",
+                format!("{} is outside [0, 1]", self.playback_sharpening),
+            );
+        }
         if self.seam_detail_passes > 8 {
             return bad(
                 "seam_detail_passes",
@@ -336,6 +356,7 @@ mod tests {
         assert_eq!(c.seam_leveling_smoothness, 0.1);
         assert_eq!(c.seam_strip_texels, 0.0);
         assert_eq!(c.seam_detail_passes, 2);
+        assert_eq!(c.playback_sharpening, 1.0 / 6.0);
         assert!(c.exclude_images.is_empty());
         c.check().unwrap();
     }

@@ -53,6 +53,8 @@ pub(crate) struct FusedChart {
     pub label: Vec<u16>,
     /// (texel, view) pairs rejected as outliers.
     pub outlier_texels: usize,
+    /// How far apart the views see the chart's detail ([`misregistration`]).
+    pub detail: Misregistration,
 }
 
 /// Fuses the views `texels` (already sampled over `grid`) with the gains `gains`;
@@ -164,11 +166,81 @@ pub(crate) fn fuse_chart(
     if config.blend_views {
         blend_agreeing_views(grid, &texels, &qhat, &label, &mut colour, config);
     }
+    let detail = misregistration(grid, &texels, &label, &colour);
     FusedChart {
         colour,
         label,
         outlier_texels,
+        detail,
     }
+}
+
+/// Sums over a chart that estimate how far apart the views see the surface's detail
+/// ([`misregistration`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Misregistration {
+    /// Sum over (texel, view) of the squared colour difference between the view and the
+    /// fused colour.
+    pub residual: f64,
+    /// Sum over the same pairs of the fused colour's squared gradient (texel units).
+    pub gradient: f64,
+}
+
+impl Misregistration {
+    /// Mean squared displacement, texels^2, between a view's content and the fused one
+    /// (`residual / gradient`); 0 when nothing was measured.
+    pub fn squared_texels(&self) -> f64 {
+        if self.gradient > 0.0 {
+            self.residual / self.gradient
+        } else {
+            0.0
+        }
+    }
+}
+
+/// How far the views other than each texel's label are from the fused colours, against the
+/// fused colours' gradient: a view whose content is displaced by `d` texels differs from it
+/// by `d . grad` to first order, so `residual / gradient` estimates the mean squared
+/// displacement (noise and leftover exposure differences count as displacement too: all of
+/// them make the fine detail of one view a poor prediction of another's). Over labelled
+/// interior texels whose four neighbours are labelled.
+fn misregistration(
+    grid: &ChartGrid,
+    texels: &[ViewTexels],
+    label: &[u16],
+    colour: &[[f32; 3]],
+) -> Misregistration {
+    let (w, h) = (grid.width, grid.height);
+    let mut out = Misregistration::default();
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let nb = [i, i - 1, i + 1, i - w, i + w];
+            if nb
+                .iter()
+                .any(|&j| label[j] == u16::MAX || !grid.interior[j])
+            {
+                continue;
+            }
+            let g2: f64 = (0..3)
+                .map(|c| {
+                    let gx = 0.5 * (colour[i + 1][c] - colour[i - 1][c]) as f64;
+                    let gy = 0.5 * (colour[i + w][c] - colour[i - w][c]) as f64;
+                    gx * gx + gy * gy
+                })
+                .sum();
+            for (k, t) in texels.iter().enumerate() {
+                if k == label[i] as usize || !t.valid[i] {
+                    continue;
+                }
+                out.residual += (0..3)
+                    .map(|c| ((t.colour[i][c] - colour[i][c]) as f64).powi(2))
+                    .sum::<f64>();
+                out.gradient += g2;
+            }
+        }
+    }
+    out
 }
 
 /// Replaces each labelled texel's colour by a weighted mean of its label's view and the
@@ -546,5 +618,46 @@ mod tests {
         let mut colour = vec![[0.50; 3]];
         blend_agreeing_views(&grid, &texels, &qhat, &[0], &mut colour, &config);
         assert!((colour[0][0] - 0.505).abs() < 1e-6, "{:?}", colour[0]);
+    }
+
+    #[test]
+    fn misregistration_estimates_the_squared_shift_between_views() {
+        // A 32 x 32 chart, all interior; view 0 sees a smooth pattern, view 1 the same
+        // pattern displaced by `d` texels along x and `d / 2` along y. The estimate must
+        // be the mean squared displacement per axis, (d^2 + d^2 / 4) / 2, to first order.
+        let (w, h) = (32usize, 32usize);
+        let grid = ChartGrid {
+            x0: 0,
+            y0: 0,
+            width: w,
+            height: h,
+            faces: vec![0],
+            texel_face: vec![0; w * h],
+            bary: vec![[1.0, 0.0, 0.0]; w * h],
+            interior: vec![true; w * h],
+            uv_area: vec![(w * h) as f64],
+        };
+        let pattern = |x: f64, y: f64| {
+            let v = 0.5 + 0.2 * (0.35 * x).sin() * (0.3 * y + 0.4).cos();
+            [v as f32, (1.0 - v) as f32, 0.5]
+        };
+        for d in [0.0f64, 0.3, 0.6, 1.0] {
+            let view = |v: usize, dx: f64, dy: f64| ViewTexels {
+                view: v,
+                colour: (0..w * h)
+                    .map(|i| pattern((i % w) as f64 - dx, (i / w) as f64 - dy))
+                    .collect(),
+                valid: vec![true; w * h],
+            };
+            let texels = vec![view(0, 0.0, 0.0), view(1, d, d / 2.0)];
+            let label = vec![0u16; w * h];
+            let m = misregistration(&grid, &texels, &label, &texels[0].colour);
+            let expected = (d * d + d * d / 4.0) / 2.0;
+            let got = m.squared_texels();
+            assert!(
+                (got - expected).abs() <= 0.15 * expected + 1e-6,
+                "shift {d}: {got} texels^2, expected {expected}"
+            );
+        }
     }
 }

@@ -92,6 +92,12 @@ pub struct TextureSummary {
     pub outlier_texels: usize,
     /// Colour jumps across the chart boundaries of the result (`seams.rs`).
     pub seams: crate::SeamDiscrepancy,
+    /// Mean squared displacement between the views' content and the fused texture, texels^2
+    /// (`fusion.rs`, `misregistration`).
+    pub misregistration_texels2: f64,
+    /// Strength of the playback sharpening applied (`TextureConfig::playback_sharpening`
+    /// scaled by `1 - misregistration_texels2`, at least 0).
+    pub sharpening: f64,
     pub gains: Vec<ViewGain>,
     pub seconds: Timings,
     pub warnings: Vec<String>,
@@ -188,6 +194,15 @@ pub fn texture(
         .collect();
     progress.end();
     summary.outlier_texels = fused.iter().map(|c| c.outliers).sum();
+    // The views' misregistration over the whole texture (one estimate: small charts alone
+    // measure little) sets how much of the playback blur is worth undoing.
+    let (residual, gradient) = fused.iter().fold((0.0, 0.0), |(r, g), c| {
+        (r + c.detail.residual, g + c.detail.gradient)
+    });
+    summary.misregistration_texels2 =
+        crate::fusion::Misregistration { residual, gradient }.squared_texels();
+    summary.sharpening =
+        config.playback_sharpening * (1.0 - summary.misregistration_texels2).max(0.0);
     summary.seconds.fusion = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -258,7 +273,10 @@ pub fn texture(
     let mut masks = Vec::with_capacity(atlases);
     let (mut interior, mut covered) = (0usize, 0usize);
     for a in 0..atlases as u32 {
-        let (colour, mask) = assemble(&fused, a, s);
+        let (mut colour, mask) = assemble(&fused, a, s);
+        if summary.sharpening > 0.0 {
+            sharpen_for_bilinear(&mut colour, &mask, s, summary.sharpening as f32);
+        }
         interior += mask.iter().filter(|&&m| m != 0).count();
         covered += mask.iter().filter(|&&m| m == 255).count();
         let rgb: Vec<u8> = colour
@@ -373,6 +391,30 @@ fn assemble(fused: &[ChartOutput], a: u32, s: usize) -> (Vec<[f32; 3]>, Vec<u8>)
     (colour, mask)
 }
 
+/// Compensates the blur of a viewer's bilinear lookup (`TextureConfig::playback_sharpening`):
+/// `(1 + 4a) c - a (sum of the 4 neighbours)`, clamped to [0, 1], on the photo texels whose
+/// four neighbours are photo texels too (`mask` 255): a chart's edge, its filled holes and
+/// the gutters stay as they are, so no seam step is amplified.
+fn sharpen_for_bilinear(colour: &mut [[f32; 3]], mask: &[u8], s: usize, a: f32) {
+    let src = colour.to_vec();
+    colour.par_chunks_mut(s).enumerate().for_each(|(y, row)| {
+        if y == 0 || y + 1 == s {
+            return;
+        }
+        for (x, out) in row.iter_mut().enumerate().take(s - 1).skip(1) {
+            let k = y * s + x;
+            let nb = [k - 1, k + 1, k - s, k + s];
+            if mask[k] != 255 || nb.iter().any(|&j| mask[j] != 255) {
+                continue;
+            }
+            *out = [0, 1, 2].map(|c| {
+                let sum: f32 = nb.iter().map(|&j| src[j][c]).sum();
+                ((1.0 + 4.0 * a) * src[k][c] - a * sum).clamp(0.0, 1.0)
+            });
+        }
+    });
+}
+
 /// The renderer's bilinear lookup (`fresco_core::raster::sample_bilinear`) on a float atlas
 /// of `s` x `s` texels at UV (u, v).
 fn bilinear(atlas: &[[f32; 3]], s: usize, u: f64, v: f64) -> [f32; 3] {
@@ -404,6 +446,7 @@ struct ChartOutput {
     colour: Vec<[f32; 3]>,
     state: Vec<u8>,
     outliers: usize,
+    detail: crate::fusion::Misregistration,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -461,6 +504,7 @@ fn fuse_one_chart(
         colour: fused.colour,
         state,
         outliers: fused.outlier_texels,
+        detail: fused.detail,
     }
 }
 
@@ -712,4 +756,53 @@ pub fn texture_mesh(
 /// Encodes `img` as PNG and writes it atomically (core's writer).
 pub(crate) fn write_png(path: &Path, img: &image::DynamicImage) -> Result<(), TextureError> {
     Ok(fresco_core::atomic_file::write_png_atomically(path, img)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Mean squared error of the bilinear playback of `atlas` against the continuous
+    /// `pattern` it was sampled from (at texel centres), over a grid of off-centre points
+    /// inside the texels away from the border.
+    fn playback_error(atlas: &[[f32; 3]], s: usize, pattern: impl Fn(f64, f64) -> f64) -> f64 {
+        let (mut se, mut n) = (0.0, 0.0);
+        for j in 0..200 {
+            for i in 0..200 {
+                let (x, y) = (8.0 + i as f64 * 0.0813, 8.0 + j as f64 * 0.0771);
+                let c = bilinear(atlas, s, x / s as f64, y / s as f64);
+                se += (c[0] as f64 - pattern(x, y)).powi(2);
+                n += 1.0;
+            }
+        }
+        se / n
+    }
+
+    #[test]
+    fn sharpening_for_bilinear_playback_lowers_its_error_and_keeps_edge_texels() {
+        let s = 48;
+        for freq in [0.1, 0.2, 0.3] {
+            let pattern = |x: f64, y: f64| {
+                0.5 + 0.2 * (std::f64::consts::TAU * freq * x).sin()
+                    + 0.2 * (std::f64::consts::TAU * 0.7 * freq * y + 1.0).cos()
+            };
+            let sampled: Vec<[f32; 3]> = (0..s * s)
+                .map(|k| [pattern((k % s) as f64 + 0.5, (k / s) as f64 + 0.5) as f32; 3])
+                .collect();
+            let mut mask = vec![255u8; s * s];
+            // A filled texel: it and its neighbours must be left alone.
+            mask[5 * s + 5] = 128;
+            let mut sharp = sampled.clone();
+            sharpen_for_bilinear(&mut sharp, &mask, s, 1.0 / 6.0);
+            for k in [5 * s + 5, 5 * s + 4, 4 * s + 5, 0, s * s - 1] {
+                assert_eq!(sharp[k], sampled[k], "texel {k} changed");
+            }
+            let before = playback_error(&sampled, s, pattern);
+            let after = playback_error(&sharp, s, pattern);
+            assert!(
+                after < 0.9 * before,
+                "frequency {freq}: playback error {after} against {before} unsharpened"
+            );
+        }
+    }
 }
