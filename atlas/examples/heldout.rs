@@ -4,7 +4,7 @@
 //! ground-truth mesh and cameras. With COLMAP=<model dir> IMAGES=<dir> MESH=<ply> HELD=a,b
 //! a real scene's named photos are held out instead; SEAMS=a.glb,b.glb prints the seam colour
 //! discrepancy of textured GLBs. Environment: WIDTH (640), VIEWS (24), K1 (distortion, 0 for
-//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, OUTWIN, OUTNEAR, OUTPATCH, LEVEL, LEVELSMOOTH, STRIP (seam strip width, 0 off), DETAIL (seam detail passes), NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
+//! none), TPP, QW, MIPBIAS, BILINEAR, NOOUT, OUTSIG, OUTMIN, OUTWIN, OUTNEAR, OUTPATCH, LEVEL, LEVELSMOOTH, STRIP (seam strip width, 0 off), DETAIL (seam detail passes), STRIPCREASE (degrees), SHARPEN (playback sharpening), DIAG (error split by cause), GLB (score that model instead), NOGAIN, NOBLEND, BLENDQ, BLENDTOL, BLENDSIGMA, BLENDFADE, SAVE (renders and diff to /tmp).
 
 use std::path::Path;
 use std::time::Instant;
@@ -117,6 +117,8 @@ fn main() {
             .map_or(TextureConfig::default().unwrap_stretch_iterations, |v| {
                 v as u32
             }),
+        seam_strip_crease_deg: var("STRIPCREASE")
+            .unwrap_or(TextureConfig::default().seam_strip_crease_deg),
         playback_sharpening: var("SHARPEN").unwrap_or(TextureConfig::default().playback_sharpening),
         ..TextureConfig::default()
     };

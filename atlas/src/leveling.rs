@@ -312,10 +312,12 @@ pub(crate) fn seam_strip(
     rects: &[ChartRect],
     width: f32,
     mode: StripMode,
+    crease_deg: f64,
 ) -> Vec<Vec<[f32; 3]>> {
     use rayon::prelude::*;
     let mut seeds: Vec<Vec<Seed>> = (0..rects.len()).map(|_| Vec::new()).collect();
     let s = size as f64;
+    let crease_cos = (crease_deg < 180.0).then(|| crease_deg.to_radians().cos());
     for (_, sides) in &edges_by_position(mesh) {
         if sides.len() != 2 {
             continue;
@@ -330,6 +332,15 @@ pub(crate) fn seam_strip(
             && (0..2).all(|k| (a0[k] - b0[k]).abs() < 1e-6 && (a1[k] - b1[k]).abs() < 1e-6);
         if same {
             continue;
+        }
+        if let Some(cos_crease) = crease_cos {
+            let normal = |f: usize| {
+                let [p, q, r] = mesh.triangle(f);
+                (q - p).cross(&(r - p)).normalize()
+            };
+            if normal(a.0).dot(&normal(b.0)) < cos_crease {
+                continue;
+            }
         }
         let len = |p: [f64; 2], q: [f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) * s;
         let n = (len(a0, a1).max(len(b0, b1)).ceil() as usize).clamp(2, MAX_SAMPLES_PER_EDGE);
@@ -500,7 +511,18 @@ mod tests {
             })
             .collect();
         let level = StripMode::Level;
-        let off = seam_strip(&mesh, &uvs, &chart_of, |_| 0, 64, read, &rects, 8.0, level);
+        let off = seam_strip(
+            &mesh,
+            &uvs,
+            &chart_of,
+            |_| 0,
+            64,
+            read,
+            &rects,
+            8.0,
+            level,
+            180.0,
+        );
         let at = |c: usize, x: usize, y: usize| off[c][y * 64 + x][0];
         for y in [6, 16, 26] {
             // At the seam each side moves half-way: 0.45 + 0.05 = 0.55 - 0.05.
@@ -514,7 +536,18 @@ mod tests {
         }
         // Equal colours: no offsets.
         let flat = |_: usize, _: f64, _: f64| [0.5; 3];
-        let off = seam_strip(&mesh, &uvs, &chart_of, |_| 0, 64, flat, &rects, 8.0, level);
+        let off = seam_strip(
+            &mesh,
+            &uvs,
+            &chart_of,
+            |_| 0,
+            64,
+            flat,
+            &rects,
+            8.0,
+            level,
+            180.0,
+        );
         assert!(
             off.iter()
                 .flatten()
@@ -536,12 +569,65 @@ mod tests {
             &rects,
             2.0,
             StripMode::Detail,
+            180.0,
         );
         for y in [6usize, 16, 26] {
             let half = 0.25 * ((y as f64 + 0.5) / 64.0 - 0.05) as f32;
             let got = detail[0][y * 64 + 28][0];
             assert!((got - half).abs() < 0.01, "row {y}: {got} against {half}");
             assert_eq!(detail[0][y * 64 + 25][0], 0.0);
+        }
+    }
+
+    #[test]
+    fn the_seam_strip_leaves_a_step_across_a_sharp_crease() {
+        let (mut mesh, uvs, chart_of) = two_charts();
+        let read = |_: usize, u: f64, _: f64| if u < 0.5 { [0.45; 3] } else { [0.55; 3] };
+        let inside = vec![1u8; 64 * 64];
+        let rects: Vec<ChartRect> = (0..2)
+            .map(|_| ChartRect {
+                x0: 0,
+                y0: 0,
+                width: 64,
+                height: 64,
+                inside: &inside,
+            })
+            .collect();
+        let moved = |mesh: &Mesh, crease: f64| {
+            seam_strip(
+                mesh,
+                &uvs,
+                &chart_of,
+                |_| 0,
+                64,
+                read,
+                &rects,
+                2.0,
+                StripMode::Detail,
+                crease,
+            )
+            .iter()
+            .flatten()
+            .map(|v| v[0].abs())
+            .fold(0f32, f32::max)
+        };
+        // The right chart folded up by about 27 degrees, then by 90 degrees.
+        for (z, bent_at_60) in [(0.5, true), (1e6, false)] {
+            mesh.positions[4] = Point3::new(2.0, 0.0, z);
+            mesh.positions[5] = Point3::new(2.0, 1.0, z);
+            if z > 1.0 {
+                mesh.positions[4] = Point3::new(1.0, 0.0, 1.0);
+                mesh.positions[5] = Point3::new(1.0, 1.0, 1.0);
+            }
+            assert!(
+                moved(&mesh, 180.0) > 0.04,
+                "fold {z}: every edge is blended at 180"
+            );
+            assert_eq!(
+                moved(&mesh, 60.0) > 0.04,
+                bent_at_60,
+                "fold {z} at 60 degrees"
+            );
         }
     }
 }

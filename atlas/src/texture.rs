@@ -259,7 +259,15 @@ pub fn texture(
         progress.begin("blending seams", passes.len() as u64);
         for (width, mode) in passes {
             strip_pass(
-                &mut fused, &mesh, uvs, &chart_of, size, atlases, width, mode,
+                &mut fused,
+                &mesh,
+                uvs,
+                &chart_of,
+                size,
+                atlases,
+                width,
+                mode,
+                config.seam_strip_crease_deg,
             );
             progress.advance(1);
         }
@@ -315,6 +323,7 @@ fn strip_pass(
     atlases: usize,
     width: f32,
     mode: StripMode,
+    crease_deg: f64,
 ) {
     let s = size as usize;
     let filled: Vec<Vec<[f32; 3]>> = (0..atlases as u32)
@@ -340,6 +349,7 @@ fn strip_pass(
         &rects,
         width,
         mode,
+        crease_deg,
     );
     drop(rects);
     fused.par_iter_mut().zip(offsets).for_each(|(out, off)| {

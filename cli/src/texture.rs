@@ -64,6 +64,14 @@ pub struct TextureArgs {
     /// Passes closing the remaining colour step at every texel along the seams (0: off).
     #[arg(long, default_value_t = TextureConfig::default().seam_detail_passes)]
     pub seam_detail_passes: u32,
+    /// Seam edges whose faces meet at more than this angle keep their colour step, degrees
+    /// (180: every seam edge is blended).
+    #[arg(long, default_value_t = TextureConfig::default().seam_strip_crease_deg)]
+    pub seam_strip_crease: f64,
+    /// Strength of the sharpening that undoes a viewer's bilinear blur where the views agree
+    /// to within a texel (0: off).
+    #[arg(long, default_value_t = TextureConfig::default().playback_sharpening)]
+    pub playback_sharpening: f64,
     /// Also write model.obj + model.mtl (with the atlas PNGs).
     #[arg(long)]
     pub obj: bool,
@@ -141,6 +149,8 @@ pub fn run(args: TextureArgs, ctx: &crate::Context) -> anyhow::Result<serde_json
         seam_leveling: args.level_seams,
         seam_strip_texels: args.seam_strip,
         seam_detail_passes: args.seam_detail_passes,
+        seam_strip_crease_deg: args.seam_strip_crease,
+        playback_sharpening: args.playback_sharpening,
         write_obj: args.obj,
         ..TextureConfig::default()
     };
