@@ -13,7 +13,11 @@
 //!    close the colour steps across chart boundaries (global, off by default), then the seam
 //!    strip: each side of a seam brought to the mean of both at every texel along it, the
 //!    correction fading out within two texels (on by default).
-//! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`).
+//!    Seam edges across a sharp crease (`seam_strip_crease_deg`) keep their step.
+//! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`),
+//!    then the playback sharpening ([`sharpen_for_bilinear`]): a viewer's bilinear lookup
+//!    blurs the texels, which the sharpening undoes where the views agree to within a texel
+//!    (its strength scaled by the views' misregistration measured in fusion).
 //!
 //! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
 
