@@ -290,6 +290,7 @@ fn bake_check(mesh: &Mesh, root: &Path, pictures: &Path) {
                     azimuth_deg: az,
                     elevation_deg: 20.0,
                     fov_deg: 40.0,
+                    distance: 1.0,
                 },
                 &RenderConfig::default(),
                 0.0,

@@ -62,14 +62,22 @@ mod tests {
         assert_eq!((k.padding, k.size, k.base), (4, 2048, [200, 200, 200]));
         let r = crate::render::RenderConfig::default();
         assert_eq!(
-            (r.base, r.background, r.shaded, r.filter),
-            ([200; 3], [0; 3], false, true)
+            (
+                r.base,
+                r.background,
+                r.shaded,
+                r.filter,
+                r.tree_mip,
+                r.mip_samples
+            ),
+            ([200; 3], [0; 3], false, true, true, 1_000_000)
         );
         for c in [
             t.check().is_ok(),
             b.check().is_ok(),
             o.check().is_ok(),
             k.check().is_ok(),
+            r.check().is_ok(),
         ] {
             assert!(c);
         }
