@@ -150,7 +150,7 @@ pub fn render_scene(
         Some(m) => m.lookup_many(&tree, qs, out),
         None => tree.lookup_many(qs, out),
     })?;
-    Ok((img, tree.memory()))
+    Ok((img, tree.memory_on(rest.surface_area(mesh))))
 }
 
 /// The pixels of `view` of `mesh` whose every sample of a `supersample` x `supersample`
@@ -243,7 +243,7 @@ pub fn bake_scene(
     Ok(BakeSummary {
         output: output.to_path_buf(),
         bake: report,
-        memory: tree.memory(),
+        memory: tree.memory_on(m.mesh.surface_area()),
         atlas_sizes: images.iter().map(|i| [i.width(), i.height()]).collect(),
     })
 }

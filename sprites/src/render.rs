@@ -90,6 +90,16 @@ impl Rest {
         })
     }
 
+    /// Area of the rest state of `mesh` (world units squared).
+    pub fn surface_area(&self, mesh: &Mesh) -> f64 {
+        mesh.faces.iter().map(|f| self.face_area(f)).sum()
+    }
+
+    fn face_area(&self, f: &[u32; 3]) -> f64 {
+        let [a, b, c] = f.map(|i| self.positions[i as usize]);
+        0.5 * (b - a).cross(&(c - a)).norm()
+    }
+
     /// Rest position and unit normal at barycentrics `b` of face `f`.
     #[inline]
     pub fn at(&self, mesh: &Mesh, f: usize, b: [f64; 3]) -> ([f64; 3], [f32; 3]) {
@@ -112,11 +122,7 @@ impl Rest {
 /// face: the same points whatever the thread count).
 pub fn rest_samples(mesh: &Mesh, rest: &Rest, count: usize) -> Vec<Query> {
     const SEED: u64 = 0x5eed_7e11;
-    let area = |f: &[u32; 3]| {
-        let [a, b, c] = f.map(|i| rest.positions[i as usize]);
-        0.5 * (b - a).cross(&(c - a)).norm()
-    };
-    let total: f64 = mesh.faces.iter().map(area).sum();
+    let total = rest.surface_area(mesh);
     if !(total > 0.0 && total.is_finite()) {
         return Vec::new();
     }
@@ -124,7 +130,7 @@ pub fn rest_samples(mesh: &Mesh, rest: &Rest, count: usize) -> Vec<Query> {
     let mut out = Vec::with_capacity(count + count / 16);
     for (f, face) in mesh.faces.iter().enumerate() {
         let mut rng = fresco_core::Rng::for_item(SEED, f as u64);
-        let e = area(face) * per_area;
+        let e = rest.face_area(face) * per_area;
         let k = e.floor() as usize + usize::from(rng.uniform() < e.fract());
         for _ in 0..k {
             let (r1, r2) = (rng.uniform().sqrt(), rng.uniform());

@@ -357,3 +357,34 @@ fn tree_mip_means_equal_brute_force_cell_averages() {
     assert_eq!(Some(root), mip.mean_at(&t, q.p, 0));
     assert_eq!(mip.lookup(&t, &q, 0.0), t.lookup(&q));
 }
+
+/// The memory report against the 2D texture of the same resolution: three sprites with
+/// densities 32 / 0.1, 24 / 0.2 and 32 / 0.4 texels per unit (median 120) over an area of
+/// 2.5 give 2.5 x 120^2 RGBA8 texels; without an area the tree reports none.
+#[test]
+fn memory_report_sets_the_sprites_against_the_2d_texture() {
+    let mut t = tree(4, 8);
+    for (k, (size, pattern)) in [(0.1, 0), (0.2, 1), (0.4, 0)].into_iter().enumerate() {
+        let s = Sprite::placed(
+            &Placement {
+                center: [0.3 * k as f64, 0.0, 0.5],
+                normal: [0.0, 0.0, 1.0],
+                up: [0.0, 1.0, 0.0],
+                size: [size, 0.1],
+                depth: 0.1,
+                rotation_deg: 0.0,
+            },
+            pattern,
+            0,
+            BlendMode::Over,
+        )
+        .unwrap();
+        t.add(s).unwrap();
+    }
+    assert_eq!(t.memory().texture_2d_bytes, None);
+    let m = t.memory_on(2.5);
+    let want = 2.5 * 120.0f64 * 120.0 * 4.0;
+    let got = m.texture_2d_bytes.unwrap() as f64;
+    assert!((got - want).abs() <= 1.0, "{got} vs {want}");
+    assert!(m.structure_bytes > 0 && m.pattern_bytes > 0);
+}
