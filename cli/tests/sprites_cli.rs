@@ -192,3 +192,63 @@ fn distant_render_uses_tree_mip_unless_told_not_to() {
     );
     assert!(!bad.exists());
 }
+
+/// Every example scene of `datasets/sprites/` bakes as it is into the atlas of the blob
+/// unwrapped by `fresco unwrap`; the JSON summary carries the memory report (structure,
+/// allocated pool, patterns, the 2D texture of the same resolution, figure 6's depth limits).
+#[test]
+fn every_example_scene_bakes_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let uv = dir.path().join("blob_uv.obj");
+    let out = fresco(&[
+        "unwrap",
+        s(&examples().join("blob.ply")),
+        "-o",
+        s(&uv),
+        "--atlas",
+        "256",
+        "-q",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for case in ["lapped", "gears", "stars", "blobby", "voronoi"] {
+        let glb = dir.path().join(format!("{case}.glb"));
+        let out = fresco(&[
+            "sprites",
+            "bake",
+            s(&uv),
+            s(&examples().join(format!("{case}.json"))),
+            "-o",
+            s(&glb),
+            "--atlas",
+            "256",
+            "--json",
+            "-q",
+        ]);
+        assert!(
+            out.status.success(),
+            "{case}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(
+            summary["bake"]["decorated"].as_u64().unwrap() > 1000,
+            "{case}"
+        );
+        let m = &summary["memory"];
+        for field in [
+            "structure_bytes",
+            "allocated_bytes",
+            "pattern_bytes",
+            "texture_2d_bytes",
+            "float32_depth_limit",
+            "cpu_depth_limit",
+        ] {
+            assert!(m[field].as_u64().unwrap() > 0, "{case}: {field}: {m}");
+        }
+        assert!(glb.exists());
+    }
+}
