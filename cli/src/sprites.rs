@@ -37,6 +37,9 @@ struct RenderArgs {
     /// Orbit camera: azimuth,elevation,fov in degrees.
     #[arg(long, default_value = "30,20,40")]
     camera: String,
+    /// Camera distance as a multiple of the one framing the mesh (above 1: a distant view).
+    #[arg(long, default_value_t = View::default().distance)]
+    distance: f64,
     /// Image size WIDTHxHEIGHT.
     #[arg(long, default_value = "640x480")]
     size: String,
@@ -49,6 +52,13 @@ struct RenderArgs {
     /// Headlight shading.
     #[arg(long)]
     shaded: bool,
+    /// Plain lookups only: no tree mip-mapping (cell means) for pixels whose footprint is
+    /// wider than the sprites or leaf cells they fall in.
+    #[arg(long)]
+    no_tree_mip: bool,
+    /// Surface samples of the rest mesh the tree's cell means are taken over.
+    #[arg(long, default_value_t = RenderConfig::default().mip_samples)]
+    mip_samples: usize,
     /// Output PNG.
     #[arg(short, long)]
     output: PathBuf,
@@ -143,9 +153,12 @@ pub fn run(args: SpritesArgs, _ctx: &crate::Context) -> anyhow::Result<serde_jso
                 azimuth_deg: az,
                 elevation_deg: el,
                 fov_deg: fov,
+                distance: a.distance,
             };
             let cfg = RenderConfig {
                 shaded: a.shaded,
+                tree_mip: !a.no_tree_mip,
+                mip_samples: a.mip_samples,
                 ..RenderConfig::default()
             };
             let (img, memory) =

@@ -144,3 +144,111 @@ fn example_scene_renders_and_octree_is_written() {
     assert_eq!((tex.depth, tex.channels), (6, 3));
     assert!(tex.texels > 1000);
 }
+
+/// `--distance` moves the camera out; there the tree's cell means change the render, and
+/// `--no-tree-mip` gives the plain lookups (the measured effect is in
+/// fresco-sprites' tree_mip_render test); a distance of 0 is refused.
+#[test]
+fn distant_render_uses_tree_mip_unless_told_not_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = examples().join("blob.ply");
+    let scene = examples().join("voronoi.json");
+    let render = |extra: &[&str], png: &Path| {
+        let mut args = vec![
+            "sprites",
+            "render",
+            s(&mesh),
+            s(&scene),
+            "-o",
+            s(png),
+            "--size",
+            "96x96",
+            "--distance",
+        ];
+        args.extend_from_slice(extra);
+        fresco(&args)
+    };
+    let (mip, plain) = (dir.path().join("mip.png"), dir.path().join("plain.png"));
+    for (extra, png) in [(&["4"][..], &mip), (&["4", "--no-tree-mip"][..], &plain)] {
+        let out = render(extra, png);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let (a, b) = (
+        image::open(&mip).unwrap().to_rgb8(),
+        image::open(&plain).unwrap().to_rgb8(),
+    );
+    assert_eq!(a.dimensions(), (96, 96));
+    assert!(a != b, "the tree mip changed nothing at 4x the distance");
+    let bad = dir.path().join("bad.png");
+    let out = render(&["0"], &bad);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("camera distance 0"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+}
+
+/// Every example scene of `datasets/sprites/` bakes as it is into the atlas of the blob
+/// unwrapped by `fresco unwrap`; the JSON summary carries the memory report (structure,
+/// allocated pool, patterns, the 2D texture of the same resolution, figure 6's depth limits).
+#[test]
+fn every_example_scene_bakes_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let uv = dir.path().join("blob_uv.obj");
+    let out = fresco(&[
+        "unwrap",
+        s(&examples().join("blob.ply")),
+        "-o",
+        s(&uv),
+        "--atlas",
+        "256",
+        "-q",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for case in ["lapped", "gears", "stars", "blobby", "voronoi"] {
+        let glb = dir.path().join(format!("{case}.glb"));
+        let out = fresco(&[
+            "sprites",
+            "bake",
+            s(&uv),
+            s(&examples().join(format!("{case}.json"))),
+            "-o",
+            s(&glb),
+            "--atlas",
+            "256",
+            "--json",
+            "-q",
+        ]);
+        assert!(
+            out.status.success(),
+            "{case}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(
+            summary["bake"]["decorated"].as_u64().unwrap() > 1000,
+            "{case}"
+        );
+        let m = &summary["memory"];
+        for field in [
+            "structure_bytes",
+            "allocated_bytes",
+            "pattern_bytes",
+            "texture_2d_bytes",
+            "float32_depth_limit",
+            "cpu_depth_limit",
+        ] {
+            assert!(m[field].as_u64().unwrap() > 0, "{case}: {field}: {m}");
+        }
+        assert!(glb.exists());
+    }
+}

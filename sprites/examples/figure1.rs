@@ -90,7 +90,7 @@ fn main() {
                 0.0,
             )
             .unwrap();
-        let m = tree.memory();
+        let m = tree.memory_on(area);
         let covered = surface
             .par_iter()
             .filter(|q| tree.lookup(q)[3] > 0.0)
@@ -122,17 +122,7 @@ fn main() {
             ));
         }
         // The 2D texture with the sprites' texel density over the whole surface (RGBA8).
-        let mut dens: Vec<f64> = tree
-            .ids()
-            .map(|i| {
-                let s = tree.sprite(i).unwrap();
-                let p = &tree.patterns()[s.pattern as usize];
-                p.width() as f64 / (s.l.iter().map(|v| v * v).sum::<f64>()).sqrt()
-            })
-            .collect();
-        dens.sort_by(f64::total_cmp);
-        let density = dens[dens.len() / 2];
-        let tex2d = area * density * density * 4.0;
+        let tex2d = m.texture_2d_bytes.expect("sprites") as usize;
         println!(
             "| {case} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.1} | {:.0}% | {:.1} ({:.1}) | {:.1} ({:.1}) | {paper_struct} / {paper_alloc} | {:.1} |",
             m.sprites,
@@ -142,7 +132,7 @@ fn main() {
             mb(m.structure_bytes),
             mb(m.allocated_bytes),
             mb(m.pattern_bytes),
-            mb(tex2d as usize),
+            mb(tex2d),
             100.0 * covered as f64 / surface.len() as f64,
             s_rate.0 / 1e6,
             s_rate.1 / 1e6,
@@ -290,6 +280,7 @@ fn bake_check(mesh: &Mesh, root: &Path, pictures: &Path) {
                     azimuth_deg: az,
                     elevation_deg: 20.0,
                     fov_deg: 40.0,
+                    distance: 1.0,
                 },
                 &RenderConfig::default(),
                 0.0,

@@ -9,13 +9,17 @@
 //!   leaf vectors, `add` / `remove` / `update`, [`SpriteTree::lookup`] (and
 //!   [`SpriteTree::lookup_many`] for queries in surface order, on the CPU lookup layout of
 //!   `lookup.rs`: 8 sprites tested at once in SIMD lanes) and the brute-force reference,
-//!   [`SpriteTree::memory`]; [`tree_mip::TreeMip`]: tree mip-mapping (cell means for distant
+//!   [`SpriteTree::memory`] / [`SpriteTree::memory_on`] (against the 2D texture);
+//!   [`tree_mip::TreeMip`]: tree mip-mapping (cell means, filtered by the screen-space
+//!   footprint in [`tree_mip::TreeMip::lookup_many`], which the render uses for distant
 //!   views);
 //! - [`Sprite`], [`Placement`], [`BlendMode`] (`sprite.rs`), [`Pattern`] (`pattern.rs`),
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
 //! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
-//!   images through core's rasteriser with screen-space footprints; [`bake`]: the composite
-//!   texture written into a mesh's UV atlas; [`pipeline`]: the `fresco sprites` verbs.
+//!   images through core's rasteriser with screen-space footprints (and the rest-surface
+//!   samples of the cell means); [`bake`]: the composite texture written into a mesh's UV
+//!   atlas; [`pipeline`]: the `fresco sprites` verbs ([`pipeline::View`]: orbit camera at a
+//!   multiple of the framing distance).
 
 // Loops over the 3 axes index several arrays at once; iterator chains would read worse.
 #![allow(clippy::needless_range_loop)]
@@ -62,14 +66,22 @@ mod tests {
         assert_eq!((k.padding, k.size, k.base), (4, 2048, [200, 200, 200]));
         let r = crate::render::RenderConfig::default();
         assert_eq!(
-            (r.base, r.background, r.shaded, r.filter),
-            ([200; 3], [0; 3], false, true)
+            (
+                r.base,
+                r.background,
+                r.shaded,
+                r.filter,
+                r.tree_mip,
+                r.mip_samples
+            ),
+            ([200; 3], [0; 3], false, true, true, 1_000_000)
         );
         for c in [
             t.check().is_ok(),
             b.check().is_ok(),
             o.check().is_ok(),
             k.check().is_ok(),
+            r.check().is_ok(),
         ] {
             assert!(c);
         }

@@ -4,16 +4,20 @@
 
 use std::path::{Path, PathBuf};
 
-use fresco_core::Mesh;
+use fresco_core::nalgebra::Vector3;
+use fresco_core::{CamFromWorld, Camera, Mesh};
 use fresco_pst::octree_texture::OctreeTexture;
 use image::RgbImage;
 
 use crate::bake::{BakeConfig, BakeReport, bake};
 use crate::error::{Result, SpriteError};
 use crate::octree::{OctreeConfig, OctreeMemory};
-use crate::render::{RenderConfig, Rest, orbit_camera, render};
+use crate::render::{
+    RenderConfig, Rest, downsample, orbit_camera, per_query, render, rest_samples,
+};
 use crate::scene::Scene;
 use crate::tree::MemoryReport;
+use crate::tree_mip::TreeMip;
 
 /// A model: its mesh and the images its faces sample (`None`: a material without one).
 pub struct Model {
@@ -63,6 +67,9 @@ pub struct View {
     pub azimuth_deg: f64,
     pub elevation_deg: f64,
     pub fov_deg: f64,
+    /// Distance from the box centre, as a multiple of the distance that frames the mesh's
+    /// bounding sphere: above 1 a distant view, below 1 a close-up. Default 1.
+    pub distance: f64,
 }
 
 impl Default for View {
@@ -73,12 +80,47 @@ impl Default for View {
             azimuth_deg: 30.0,
             elevation_deg: 20.0,
             fov_deg: 40.0,
+            distance: 1.0,
         }
     }
 }
 
+impl View {
+    /// The orbit camera ([`orbit_camera`]) framing the box `lo`..`hi`, moved along its ray
+    /// through the box centre to `distance` times the framing distance.
+    pub fn camera(&self, lo: [f64; 3], hi: [f64; 3]) -> Result<(Camera, CamFromWorld)> {
+        if !(self.distance > 0.0 && self.distance.is_finite()) {
+            return Err(SpriteError::Input(format!(
+                "camera distance {} must be a positive multiple of the framing distance",
+                self.distance
+            )));
+        }
+        let (camera, mut pose) = orbit_camera(
+            lo,
+            hi,
+            self.width,
+            self.height,
+            self.azimuth_deg,
+            self.elevation_deg,
+            self.fov_deg,
+        )?;
+        // With p_cam = R p + t, the centre c sits at R c + t, which the distance scales.
+        let c = Vector3::new(
+            0.5 * (lo[0] + hi[0]),
+            0.5 * (lo[1] + hi[1]),
+            0.5 * (lo[2] + hi[2]),
+        );
+        let rc = pose.0.rotation * c;
+        pose.0.translation = -rc + (rc + pose.0.translation) * self.distance;
+        Ok((camera, pose))
+    }
+}
+
 /// Renders the sprite scene on `mesh` (texture attached to `rest`, or to the mesh itself)
-/// at time `t`; returns the image and the tree's memory figures.
+/// at time `t`; returns the image and the tree's memory figures. With `config.tree_mip`
+/// (and `filter`) the tree's cell means are taken over `config.mip_samples` points of the
+/// rest surface and pixels whose footprint is wider than the leaf's sprites or cell read
+/// them ([`TreeMip::lookup_many`]); the others get the plain lookup, bit for bit.
 pub fn render_scene(
     mesh: &Mesh,
     rest: Option<&Mesh>,
@@ -87,6 +129,7 @@ pub fn render_scene(
     config: &RenderConfig,
     t: f64,
 ) -> Result<(RgbImage, MemoryReport)> {
+    config.check()?;
     let rest = Rest::of(mesh, rest)?;
     let bb = Mesh::from_triangles(rest.positions.clone(), Vec::new())
         .bounding_box()
@@ -97,19 +140,52 @@ pub fn render_scene(
         t,
     )?;
     let vb = mesh.bounding_box().expect("has vertices");
-    let (camera, pose) = orbit_camera(
+    let (camera, pose) = view.camera(
         [vb.min.x, vb.min.y, vb.min.z],
         [vb.max.x, vb.max.y, vb.max.z],
-        view.width,
-        view.height,
-        view.azimuth_deg,
-        view.elevation_deg,
-        view.fov_deg,
     )?;
-    let img = render(mesh, &rest, &camera, &pose, config, &|qs, out| {
-        tree.lookup_many(qs, out)
+    let mip = (config.tree_mip && config.filter)
+        .then(|| TreeMip::new(&tree, &rest_samples(mesh, &rest, config.mip_samples)));
+    let img = render(mesh, &rest, &camera, &pose, config, &|qs, out| match &mip {
+        Some(m) => m.lookup_many(&tree, qs, out),
+        None => tree.lookup_many(qs, out),
     })?;
-    Ok((img, tree.memory()))
+    Ok((img, tree.memory_on(rest.surface_area(mesh))))
+}
+
+/// The pixels of `view` of `mesh` whose every sample of a `supersample` x `supersample`
+/// grid sees the surface (for comparisons away from the silhouette).
+pub fn covered_pixels(mesh: &Mesh, view: &View, supersample: u32) -> Result<Vec<bool>> {
+    let bb = mesh
+        .bounding_box()
+        .ok_or_else(|| SpriteError::Input("the mesh has no vertices".into()))?;
+    let big = View {
+        width: view.width * supersample,
+        height: view.height * supersample,
+        ..view.clone()
+    };
+    let (camera, pose) = big.camera(
+        [bb.min.x, bb.min.y, bb.min.z],
+        [bb.max.x, bb.max.y, bb.max.z],
+    )?;
+    let config = RenderConfig {
+        base: [255; 3],
+        background: [0; 3],
+        ..RenderConfig::default()
+    };
+    let rest = Rest::of(mesh, None)?;
+    let img = render(
+        mesh,
+        &rest,
+        &camera,
+        &pose,
+        &config,
+        &per_query(|_| [0.0; 4]),
+    )?;
+    Ok(downsample(&img, supersample)
+        .pixels()
+        .map(|p| p.0 == [255; 3])
+        .collect())
 }
 
 /// What `fresco sprites bake` did.
@@ -167,7 +243,7 @@ pub fn bake_scene(
     Ok(BakeSummary {
         output: output.to_path_buf(),
         bake: report,
-        memory: tree.memory(),
+        memory: tree.memory_on(m.mesh.surface_area()),
         atlas_sizes: images.iter().map(|i| [i.width(), i.height()]).collect(),
     })
 }

@@ -29,6 +29,13 @@ pub struct RenderConfig {
     pub shaded: bool,
     /// Pass screen-space footprints to the lookup (mip filtering). Default true.
     pub filter: bool,
+    /// Tree mip-mapping for footprints wider than the leaf's sprites or cell (section 6;
+    /// [`crate::tree_mip::TreeMip`]), used by [`crate::pipeline::render_scene`]; needs
+    /// `filter`. Default true.
+    pub tree_mip: bool,
+    /// Surface samples of the rest mesh the tree's cell means are taken over
+    /// ([`rest_samples`]). Default 1,000,000.
+    pub mip_samples: usize,
 }
 
 impl Default for RenderConfig {
@@ -38,7 +45,22 @@ impl Default for RenderConfig {
             background: [0, 0, 0],
             shaded: false,
             filter: true,
+            tree_mip: true,
+            mip_samples: 1_000_000,
         }
+    }
+}
+
+impl RenderConfig {
+    /// Validates every field by name.
+    pub fn check(&self) -> Result<()> {
+        if self.tree_mip && self.mip_samples == 0 {
+            return Err(SpriteError::Config {
+                field: "mip_samples",
+                message: "0: tree mip-mapping needs surface samples".into(),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -68,6 +90,16 @@ impl Rest {
         })
     }
 
+    /// Area of the rest state of `mesh` (world units squared).
+    pub fn surface_area(&self, mesh: &Mesh) -> f64 {
+        mesh.faces.iter().map(|f| self.face_area(f)).sum()
+    }
+
+    fn face_area(&self, f: &[u32; 3]) -> f64 {
+        let [a, b, c] = f.map(|i| self.positions[i as usize]);
+        0.5 * (b - a).cross(&(c - a)).norm()
+    }
+
     /// Rest position and unit normal at barycentrics `b` of face `f`.
     #[inline]
     pub fn at(&self, mesh: &Mesh, f: usize, b: [f64; 3]) -> ([f64; 3], [f32; 3]) {
@@ -81,6 +113,36 @@ impl Rest {
         let n = n.try_normalize(1e-30).unwrap_or(Vector3::z());
         ([p.x, p.y, p.z], [n.x as f32, n.y as f32, n.z as f32])
     }
+}
+
+/// About `count` points spread uniformly by area over the rest state of `mesh`, as queries
+/// (rest position, rest normal, no footprint): the samples of the tree's cell means
+/// ([`crate::tree_mip::TreeMip::new`]). Each face gets its area's share, rounded up or down
+/// at random so the expected count is exact, at uniform random barycentrics (seeded per
+/// face: the same points whatever the thread count).
+pub fn rest_samples(mesh: &Mesh, rest: &Rest, count: usize) -> Vec<Query> {
+    const SEED: u64 = 0x5eed_7e11;
+    let total = rest.surface_area(mesh);
+    if !(total > 0.0 && total.is_finite()) {
+        return Vec::new();
+    }
+    let per_area = count as f64 / total;
+    let mut out = Vec::with_capacity(count + count / 16);
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let mut rng = fresco_core::Rng::for_item(SEED, f as u64);
+        let e = rest.face_area(face) * per_area;
+        let k = e.floor() as usize + usize::from(rng.uniform() < e.fract());
+        for _ in 0..k {
+            let (r1, r2) = (rng.uniform().sqrt(), rng.uniform());
+            let (p, normal) = rest.at(mesh, f, [1.0 - r1, r1 * (1.0 - r2), r1 * r2]);
+            out.push(Query {
+                p: p.map(|v| v as f32),
+                normal: Some(normal),
+                footprint: None,
+            });
+        }
+    }
+    out
 }
 
 /// The texture of a render or a bake: premultiplied RGBA at each query (`out[i]` for
@@ -182,6 +244,21 @@ pub fn render(
             }
         });
     Ok(img)
+}
+
+/// Root-mean-square difference (8-bit units, over the channels) of `a` and `b` over the
+/// pixels where `mask` is true.
+pub fn rms_error(a: &RgbImage, b: &RgbImage, mask: &[bool]) -> f64 {
+    let (mut se, mut n) = (0.0, 0usize);
+    for ((pa, pb), &m) in a.pixels().zip(b.pixels()).zip(mask) {
+        if m {
+            for k in 0..3 {
+                se += (pa[k] as f64 - pb[k] as f64).powi(2);
+            }
+            n += 3;
+        }
+    }
+    (se / n.max(1) as f64).sqrt()
 }
 
 /// PSNR (dB) of `a` against `b` over the pixels where `mask` is true.

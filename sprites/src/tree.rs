@@ -170,6 +170,10 @@ pub struct MemoryReport {
     /// Bytes of the CPU lookup layout (`lookup.rs`: flattened nodes, leaf sprites in SIMD
     /// chunks), a copy kept beside the GPU layout above.
     pub lookup_bytes: usize,
+    /// Bytes of the RGBA8 2D texture that would cover the surface at the sprites' median
+    /// texel density (pattern width / sprite width), the texture the sprites replace; set by
+    /// [`SpriteTree::memory_on`] (the tree does not know the surface's area).
+    pub texture_2d_bytes: Option<u64>,
 }
 
 impl SpriteTree {
@@ -1009,6 +1013,28 @@ impl SpriteTree {
             float32_depth_limit: float32_depth_limit(self.pool.log_n(), log_s),
             cpu_depth_limit: self.pool.max_levels(),
             lookup_bytes: self.flat().bytes(),
+            texture_2d_bytes: None,
+        }
+    }
+
+    /// [`SpriteTree::memory`] with the 2D texture of the same resolution over a surface of
+    /// `surface_area` (world units squared): RGBA8 texels at the median over the sprites of
+    /// pattern width / sprite width, per unit length, squared.
+    pub fn memory_on(&self, surface_area: f64) -> MemoryReport {
+        let mut density: Vec<f64> = self
+            .ids()
+            .filter_map(|i| {
+                let s = self.sprite(i)?;
+                let w = (s.l.iter().map(|v| v * v).sum::<f64>()).sqrt();
+                Some(self.patterns[s.pattern as usize].width() as f64 / w)
+            })
+            .collect();
+        density.sort_by(f64::total_cmp);
+        MemoryReport {
+            texture_2d_bytes: density
+                .get(density.len() / 2)
+                .map(|d| (surface_area * d * d * 4.0) as u64),
+            ..self.memory()
         }
     }
 }

@@ -356,4 +356,73 @@ fn tree_mip_means_equal_brute_force_cell_averages() {
     let root = mip.lookup(&t, &q, 100.0);
     assert_eq!(Some(root), mip.mean_at(&t, q.p, 0));
     assert_eq!(mip.lookup(&t, &q, 0.0), t.lookup(&q));
+    // The filtered lookup (the render's): footprints an eighth of the finest cells (below
+    // the plain lookup's sqrt(3) c_L / N) or none give the plain lookup bit for bit; a
+    // footprint wider than the cube gives a convex mix of root-level means, so a
+    // premultiplied colour (within [0, 1], alpha at least each channel).
+    let k = (t.cube().1 / 2f64.powi(depth as i32) / 8.0) as f32;
+    let near: Vec<Query> = samples[..2000]
+        .iter()
+        .map(|q| Query {
+            footprint: q.footprint.map(|f| Footprint {
+                dpdx: f.dpdx.map(|v| v.clamp(-k, k) / 2.0),
+                dpdy: f.dpdy.map(|v| v.clamp(-k, k) / 2.0),
+            }),
+            ..*q
+        })
+        .collect();
+    let mut out = vec![[0f32; 4]; near.len()];
+    mip.lookup_many(&t, &near, &mut out);
+    for (q, o) in near.iter().zip(&out) {
+        assert_eq!(o.map(f32::to_bits), t.lookup(q).map(f32::to_bits));
+    }
+    let far: Vec<Query> = near
+        .iter()
+        .map(|q| Query {
+            footprint: Some(Footprint {
+                dpdx: [100.0, 0.0, 0.0],
+                dpdy: [0.0, 0.0, 0.0],
+            }),
+            ..*q
+        })
+        .collect();
+    mip.lookup_many(&t, &far, &mut out);
+    let mut changed = 0;
+    for (q, o) in far.iter().zip(&out) {
+        assert!(o.iter().all(|v| (0.0..=1.0 + 1e-6).contains(v)), "{o:?}");
+        assert!(o[..3].iter().all(|&v| v <= o[3] + 1e-6), "{o:?}");
+        changed += usize::from(*o != t.lookup(q));
+    }
+    assert!(changed > 1000, "{changed}");
+}
+
+/// The memory report against the 2D texture of the same resolution: three sprites with
+/// densities 32 / 0.1, 24 / 0.2 and 32 / 0.4 texels per unit (median 120) over an area of
+/// 2.5 give 2.5 x 120^2 RGBA8 texels; without an area the tree reports none.
+#[test]
+fn memory_report_sets_the_sprites_against_the_2d_texture() {
+    let mut t = tree(4, 8);
+    for (k, (size, pattern)) in [(0.1, 0), (0.2, 1), (0.4, 0)].into_iter().enumerate() {
+        let s = Sprite::placed(
+            &Placement {
+                center: [0.3 * k as f64, 0.0, 0.5],
+                normal: [0.0, 0.0, 1.0],
+                up: [0.0, 1.0, 0.0],
+                size: [size, 0.1],
+                depth: 0.1,
+                rotation_deg: 0.0,
+            },
+            pattern,
+            0,
+            BlendMode::Over,
+        )
+        .unwrap();
+        t.add(s).unwrap();
+    }
+    assert_eq!(t.memory().texture_2d_bytes, None);
+    let m = t.memory_on(2.5);
+    let want = 2.5 * 120.0f64 * 120.0 * 4.0;
+    let got = m.texture_2d_bytes.unwrap() as f64;
+    assert!((got - want).abs() <= 1.0, "{got} vs {want}");
+    assert!(m.structure_bytes > 0 && m.pattern_bytes > 0);
 }

@@ -63,6 +63,7 @@ fn baked_glb_is_valid_and_renders_like_the_composite_texture() {
             azimuth_deg: az,
             elevation_deg: 20.0,
             fov_deg: 40.0,
+            distance: 1.0,
         };
         let (direct, _) = pipeline::render_scene(
             &baked.mesh,
