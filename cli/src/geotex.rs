@@ -3,7 +3,11 @@
 //! - `fresco geotex resize <mesh> --scale 2,1,1 -o <out.ply>` (or `--size X,Y,Z`,
 //!   `--method texture|kraevoy|uniform`): one call to `fresco_geotex::resize`; optional
 //!   `--dump-segmentation` (vertex-coloured PLY of the input's labels) and `--png` (the input
-//!   and the output side by side, texture regions coloured).
+//!   and the output side by side, texture regions coloured). Beside the output it writes
+//!   its rest mesh, `<out stem>.rest.<ext>` ([`rest_path`]): the output's faces with each
+//!   vertex where it sits on the input, so that `fresco sprites render <out> <scene>
+//!   --rest <out stem>.rest.<ext>` keeps a sprite texture on the resized mesh (the texture
+//!   method adds vertices; the rest mesh has them too).
 //! - `fresco geotex model <threaded-cylinder|bumpy-box|scaly-blob> -o <out.ply>`: writes a
 //!   synthetic model of `fresco_datasets::geometric_texture`, its ground-truth labels as
 //!   vertex colours, and prints its feature sizes (the truth `resize` is judged against).
@@ -127,6 +131,15 @@ fn write_mesh(path: &Path, mesh: &Mesh) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Where the rest mesh of `output` goes: `dir/stem.ply` -> `dir/stem.rest.ply`.
+pub fn rest_path(output: &Path) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    output.with_file_name(format!("{stem}.rest.{}", extension(output)))
+}
+
 fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(x), Ok(y)) => x == y,
@@ -159,7 +172,8 @@ fn resize(args: ResizeArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
         );
     };
     check_mesh_path(&args.output)?;
-    let mut outputs = vec![&args.output];
+    let rest = rest_path(&args.output);
+    let mut outputs = vec![&args.output, &rest];
     outputs.extend(args.dump_segmentation.as_ref());
     outputs.extend(args.png.as_ref());
     for out in outputs {
@@ -183,6 +197,7 @@ fn resize(args: ResizeArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     let out = fresco_geotex::resize(&mesh, &target, &cfg, &bars)
         .with_context(|| format!("resizing {}", args.input.display()))?;
     write_mesh(&args.output, &out.mesh)?;
+    write_mesh(&rest, &out.rest_mesh())?;
     if let Some(seg) = &args.dump_segmentation {
         write_mesh(seg, &coloured(&mesh, &out.input_labels))?;
     }
@@ -203,6 +218,7 @@ fn resize(args: ResizeArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::
     Ok(serde_json::json!({
         "input": args.input,
         "output": args.output,
+        "rest": rest,
         "report": out.report,
     }))
 }

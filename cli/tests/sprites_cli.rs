@@ -252,3 +252,98 @@ fn every_example_scene_bakes_as_it_is() {
         assert!(glb.exists());
     }
 }
+
+/// Deformation-proof texturing after `fresco geotex resize --method texture`: the resize
+/// adds vertices (refinement), so the input is no rest state for its output (refused,
+/// counts named), but the rest mesh it writes beside the output is, and the render works.
+#[test]
+fn geotex_texture_output_renders_with_its_rest_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cyl.ply");
+    let long = dir.path().join("long.ply");
+    let rest = dir.path().join("long.rest.ply");
+    let out = fresco(&["geotex", "model", "threaded-cylinder", "-o", s(&input)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = fresco(&[
+        "geotex",
+        "resize",
+        s(&input),
+        "--scale",
+        "1,1,2",
+        "--method",
+        "texture",
+        "--no-measure",
+        "-o",
+        s(&long),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["rest"].as_str(), Some(s(&rest)));
+    assert!(summary["report"]["split_vertices"].as_u64().unwrap() > 0);
+    // Sprites on the cylinder's side (radius 1 around z, the thread at |z| < 1).
+    let gears: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(examples().join("gears.json")).unwrap())
+            .unwrap();
+    let patterns: Vec<String> = (0..2)
+        .map(|k| s(&examples().join(gears["patterns"][k].as_str().unwrap())).to_string())
+        .collect();
+    let sprites: Vec<serde_json::Value> = (0..6)
+        .map(|k| {
+            let a = k as f64 * 1.0;
+            serde_json::json!({
+                "center": [a.cos(), a.sin(), -0.8 + 0.3 * k as f64],
+                "normal": [a.cos(), a.sin(), 0.0],
+                "size": [0.5, 0.5],
+                "depth": 0.2,
+                "rotation": 30.0 * k as f64,
+                "pattern": k % 2,
+                "order": k,
+                "blend": "over",
+            })
+        })
+        .collect();
+    let scene = dir.path().join("scene.json");
+    let mut doc = gears.clone();
+    doc["patterns"] = serde_json::json!(patterns);
+    doc["sprites"] = serde_json::json!(sprites);
+    std::fs::write(&scene, serde_json::to_string(&doc).unwrap()).unwrap();
+    let render = |rest_mesh: &Path, png: &Path| {
+        fresco(&[
+            "sprites",
+            "render",
+            s(&long),
+            s(&scene),
+            "--rest",
+            s(rest_mesh),
+            "-o",
+            s(png),
+            "--size",
+            "96x96",
+        ])
+    };
+    let png = dir.path().join("long.png");
+    let out = render(&rest, &png);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(image::open(&png).unwrap().to_rgb8().dimensions(), (96, 96));
+    let bad = dir.path().join("bad.png");
+    let out = render(&input, &bad);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("they must match"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+}

@@ -325,8 +325,11 @@ fn closest_on_triangle(
     a + ab * (vb * denom) + ac * (vc * denom)
 }
 
-/// Distance of every vertex of `from` to the surface of `to`.
-fn one_way(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexError> {
+/// Distance of every vertex of `from` to the surface of `to`: the nearest of the faces
+/// around the 8 vertices of `to` nearest to it. Never below the true distance (a minimum
+/// over some of `to`'s faces), equal to it wherever one of those faces holds the closest
+/// point (always, on meshes of even triangles, for points on or near `to`).
+pub fn distances_to_surface(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexError> {
     let index = PointIndex3::build(&to.positions).map_err(GeotexError::Index)?;
     let mut vertex_faces = vec![Vec::new(); to.positions.len()];
     for (f, face) in to.faces.iter().enumerate() {
@@ -353,8 +356,8 @@ fn one_way(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexError> {
 
 /// Symmetric point-to-surface distance between `a` and `b` (module docs).
 pub fn surface_distance(a: &Mesh, b: &Mesh) -> Result<SurfaceDistance, GeotexError> {
-    let mut d = one_way(a, b)?;
-    d.extend(one_way(b, a)?);
+    let mut d = distances_to_surface(a, b)?;
+    d.extend(distances_to_surface(b, a)?);
     if d.is_empty() {
         return Ok(SurfaceDistance::default());
     }

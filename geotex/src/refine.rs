@@ -160,7 +160,21 @@ pub fn refine(
     parents
 }
 
-fn nalgebra_mid(a: &Point3<f64>, b: &Point3<f64>) -> Point3<f64> {
+/// Extends per-vertex `values` (one per vertex before [`refine`]) over the vertices it added,
+/// in their order: each gets `mid` of its parents' values, so a vertex splitting an edge
+/// between two added vertices gets the midpoint of theirs (recursively, back to the input's
+/// values). The one place the refinement's correspondence is carried: the displacement the
+/// synthesis starts from and the rest positions of the output both go through it.
+pub fn carry<T: Copy>(values: &mut Vec<T>, parents: &Parents, mid: impl Fn(T, T) -> T) {
+    values.reserve(parents.len());
+    for [a, b] in parents {
+        let v = mid(values[*a as usize], values[*b as usize]);
+        values.push(v);
+    }
+}
+
+/// The midpoint of two points, as [`refine`] places its new vertices.
+pub fn nalgebra_mid(a: &Point3<f64>, b: &Point3<f64>) -> Point3<f64> {
     fresco_core::nalgebra::center(a, b)
 }
 
@@ -198,6 +212,10 @@ mod tests {
             let mid = nalgebra_mid(&positions[*a as usize], &positions[*b as usize]);
             assert_eq!(positions[m], mid);
         }
+        // Carrying the input positions through the parents gives the refined positions.
+        let mut carried = mesh.positions.clone();
+        carry(&mut carried, &parents, |a, b| nalgebra_mid(&a, &b));
+        assert_eq!(carried, positions);
         // The right half (base) keeps long edges except next to the texture.
         assert!(faces.iter().any(|f| {
             let (a, b) = (f[0] as usize, f[1] as usize);

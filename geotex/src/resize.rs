@@ -28,7 +28,7 @@ use crate::measure::{
     FeatureSizes, SurfaceDistance, feature_sizes, feature_sizes_of, surface_distance,
 };
 use crate::protective_grid::{GridConfig, GridDeformation, optimise};
-use crate::refine::refine;
+use crate::refine::{carry, nalgebra_mid, refine};
 use crate::segmentation::{Segmentation, SegmentationConfig, TextureRegion, segment};
 use crate::synthesis::{
     Example, Output, RegionSynthesis, Surface, SynthesisConfig, synthesise_region,
@@ -238,7 +238,20 @@ pub struct Resized {
     pub labels: Vec<u32>,
     /// The input's segmentation.
     pub input_labels: Vec<u32>,
+    /// Rest position per output vertex: where it sits on the input. A vertex the output
+    /// shares with the input keeps its input position (bit for bit); a vertex the texture
+    /// method's refinement added gets the midpoint of its parent edge's rest positions, so
+    /// it lies on the input triangle it was cut from. With the output's faces this is the
+    /// rest state a deformation-proof texture (fresco-sprites' `--rest`) is attached to.
+    pub rest: Vec<Point3<f64>>,
     pub report: ResizeReport,
+}
+
+impl Resized {
+    /// The rest mesh: [`Resized::rest`] with the output's faces (same topology as `mesh`).
+    pub fn rest_mesh(&self) -> Mesh {
+        Mesh::from_triangles(self.rest.clone(), self.mesh.faces.clone())
+    }
 }
 
 /// CPU seconds (user + system, all threads) the process has used so far, from
@@ -393,10 +406,10 @@ pub fn resize(
     // Each method yields the output mesh, its labels, and the deformation that maps the
     // input's base onto the output's base (for the base-shape error).
     let mut extraction: Option<Extraction> = None;
-    let (out_mesh, out_labels, deformation) = match method {
+    let (out_mesh, out_labels, rest, deformation) = match method {
         Method::Uniform => {
             let out = deform(mesh, &uniform);
-            (out, labels.clone(), uniform)
+            (out, labels.clone(), mesh.positions.clone(), uniform)
         }
         Method::Kraevoy => {
             let d = phase(
@@ -415,7 +428,7 @@ pub fn resize(
                     )
                 },
             )?;
-            (deform(mesh, &d), labels.clone(), d)
+            (deform(mesh, &d), labels.clone(), mesh.positions.clone(), d)
         }
         Method::Texture => {
             let ex = phase(
@@ -472,12 +485,12 @@ pub fn resize(
                     optimise(&base, &normals, &curv, &base_size, &cfg.grid)
                 },
             )?;
-            let (out, out_labels, split, synthesis) =
+            let (out, out_labels, rest, synthesis) =
                 texture_output(mesh, &analysis.graph, &labels, &ex, &d, cfg, progress, t)?;
-            report.split_vertices = split;
+            report.split_vertices = rest.len() - mesh.positions.len();
             report.synthesis = synthesis;
             extraction = Some(ex);
-            (out, out_labels, d)
+            (out, out_labels, rest, d)
         }
     };
     for a in 0..3 {
@@ -522,6 +535,7 @@ pub fn resize(
         mesh: out_mesh,
         labels: out_labels,
         input_labels: labels,
+        rest,
         report,
     })
 }
@@ -537,9 +551,14 @@ fn deform(mesh: &Mesh, d: &GridDeformation) -> Mesh {
     out
 }
 
+/// What [`texture_output`] returns: the mesh, its labels, its rest positions and the
+/// synthesis figures.
+type TextureOutput = (Mesh, Vec<u32>, Vec<Point3<f64>>, Vec<RegionSynthesis>);
+
 /// The texture method's output: the base deformed by `d`, stretched texture triangles
 /// split, each region's displacement re-synthesised and applied along the new normals.
-/// Returns the mesh, its labels, the vertices added by splitting and the synthesis figures.
+/// Returns the mesh, its labels, its rest positions (the input's, carried through the
+/// splits: [`Resized::rest`]) and the synthesis figures.
 #[allow(clippy::too_many_arguments)]
 fn texture_output(
     mesh: &Mesh,
@@ -550,7 +569,7 @@ fn texture_output(
     cfg: &ResizeConfig,
     progress: &dyn Progress,
     t: &mut Times,
-) -> Result<(Mesh, Vec<u32>, usize, Vec<RegionSynthesis>), GeotexError> {
+) -> Result<TextureOutput, GeotexError> {
     let mut positions: Vec<Point3<f64>> = ex.base.iter().map(|p| d.apply(p)).collect();
     let mut faces = mesh.faces.clone();
     let mut out_labels = labels.to_vec();
@@ -574,9 +593,10 @@ fn texture_output(
     // The displacement the natural correspondence carries: the input's, averaged along
     // split edges.
     let mut carried = ex.displacement.clone();
-    for [a, b] in &parents {
-        carried.push(0.5 * (carried[*a as usize] + carried[*b as usize]));
-    }
+    carry(&mut carried, &parents, |a, b| 0.5 * (a + b));
+    // Where each output vertex sits on the input, through the same parents.
+    let mut rest = mesh.positions.clone();
+    carry(&mut rest, &parents, |a, b| nalgebra_mid(&a, &b));
     let out_base = Mesh::from_triangles(positions, faces);
     let normals = vertex_normals(&out_base, &out_base.positions);
     let regions = labels.iter().copied().max().unwrap_or(0);
@@ -630,7 +650,7 @@ fn texture_output(
         .map(|((p, n), t)| p + n * *t)
         .collect();
     let out = Mesh::from_triangles(final_positions, out_base.faces);
-    Ok((out, out_labels, parents.len(), figures))
+    Ok((out, out_labels, rest, figures))
 }
 
 /// Feature sizes of input and output, and the base-shape error (module docs).

@@ -359,3 +359,64 @@ fn texture_resize_gives_the_same_bytes_on_one_and_two_threads() {
     };
     assert!(bits(&one.mesh) == bits(&two.mesh), "positions differ");
 }
+
+#[test]
+fn texture_resize_carries_rest_positions_on_the_input_surface() {
+    // The texture method refines (the thread is stretched 2x along z): the rest mesh must
+    // have the output's topology, the input's vertices at their input positions bit for
+    // bit, and every vertex the refinement added on the input surface.
+    let model = gt::threaded_cylinder(&gt::ThreadedCylinderConfig::default());
+    let cfg = ResizeConfig {
+        measure: false,
+        ..config(Method::Texture)
+    };
+    let out = resize(
+        &model.mesh,
+        &Target::Scale([1.0, 1.0, 2.0]),
+        &cfg,
+        &NoProgress,
+    )
+    .unwrap();
+    let n_in = model.mesh.positions.len();
+    assert!(out.report.split_vertices > 0, "nothing was refined");
+    let rest = out.rest_mesh();
+    assert_eq!(rest.positions.len(), out.mesh.positions.len());
+    assert_eq!(rest.faces, out.mesh.faces);
+    assert_eq!(n_in + out.report.split_vertices, rest.positions.len());
+    assert_eq!(&rest.positions[..n_in], &model.mesh.positions[..]);
+    // A created vertex is the midpoint of two points of one input triangle, so it lies on
+    // that triangle: its distance is round-off only. Coordinates are at most 2 in size and
+    // each midpoint and the closest-point arithmetic lose a few ulps (2.2e-16 relative),
+    // so 1e-12 of the diagonal (4.5e-12) is a thousand times that; a created vertex off
+    // the input (e.g. a midpoint of two non-neighbouring vertices, or a position taken from
+    // the resized output) would be 1e-3 or more away.
+    let created = fresco_core::Mesh::from_triangles(rest.positions[n_in..].to_vec(), Vec::new());
+    let d = fresco_geotex::measure::distances_to_surface(&created, &model.mesh).unwrap();
+    let diagonal = model.mesh.bounding_box().unwrap().diagonal();
+    let worst = d.iter().copied().fold(0.0, f64::max);
+    assert!(
+        worst < 1e-12 * diagonal,
+        "a created vertex is {worst} off the input"
+    );
+    // The rest state is the input's size, not the output's (stretched 2x along z).
+    let rest_box = rest.bounding_box().unwrap().extent();
+    let in_box = model.mesh.bounding_box().unwrap().extent();
+    assert!(
+        (rest_box - in_box).norm() < 1e-12,
+        "{rest_box:?} vs {in_box:?}"
+    );
+}
+
+#[test]
+fn uniform_and_kraevoy_rest_positions_are_the_input() {
+    let mesh = fresco_datasets::shapes::icosphere(1.0, 3);
+    for method in [Method::Uniform, Method::Kraevoy] {
+        let cfg = ResizeConfig {
+            measure: false,
+            ..config(method)
+        };
+        let out = resize(&mesh, &Target::Scale([2.0, 1.0, 1.0]), &cfg, &NoProgress).unwrap();
+        assert_eq!(out.rest, mesh.positions, "{method:?}");
+        assert_eq!(out.rest_mesh().faces, out.mesh.faces, "{method:?}");
+    }
+}
