@@ -517,7 +517,7 @@ pub fn parse_glb(bytes: &[u8]) -> Result<gltf::Gltf, String> {
                         json.accessors.len()
                     )
                 })?;
-                accessor_fits(accessor, semantic).map_err(|e| {
+                accessor_fits(accessor, semantic, &json.buffer_views).map_err(|e| {
                     format!(
                         "not a valid GLB: mesh {m} primitive {p}: {what} accessor {}: {e}",
                         index.value()
@@ -549,9 +549,13 @@ pub fn parse_glb(bytes: &[u8]) -> Result<gltf::Gltf, String> {
 /// (`None`: primitive indices). gltf 1.4.1 assumes it and asserts the item size, or reaches
 /// `unreachable!`, on another (found by the core_glb fuzz target: a VEC2 POSITION). Sparse
 /// accessors are refused: fresco writes none, and gltf computes their extent unchecked.
+/// The accessor's extent must lie in its buffer view: gltf computes it as
+/// `offset + stride * (count - 1) + size` unchecked, which overflows on a count of 0 (the
+/// glTF minimum is 1; found by the glb fuzz target) or a huge count.
 fn accessor_fits(
     a: &json::Accessor,
     semantic: Option<&json::validation::Checked<json::mesh::Semantic>>,
+    views: &[json::buffer::View],
 ) -> Result<(), String> {
     use json::accessor::{ComponentType as C, Type as T};
     use json::mesh::Semantic as S;
@@ -575,10 +579,51 @@ fn accessor_fits(
         Some(Valid(S::Weights(_))) => *ty == T::Vec4 && matches!(ct, C::U8 | C::U16 | C::F32),
         _ => true,
     };
-    if ok {
-        Ok(())
-    } else {
-        Err(format!("type {ty:?} of {ct:?} is not one glTF allows here"))
+    if !ok {
+        return Err(format!("type {ty:?} of {ct:?} is not one glTF allows here"));
+    }
+    accessor_extent_fits(a, ty.multiplicity() * ct.size(), views)
+}
+
+/// Whether `count` items of `item_bytes` from the accessor's offset, at its buffer view's
+/// stride, end inside that view (checked arithmetic: every value is file-controlled).
+fn accessor_extent_fits(
+    a: &json::Accessor,
+    item_bytes: usize,
+    views: &[json::buffer::View],
+) -> Result<(), String> {
+    let count = a.count.0;
+    if count == 0 {
+        return Err("count is 0 (glTF requires at least 1)".into());
+    }
+    let Some(view_index) = a.buffer_view else {
+        // No buffer view: gltf's readers yield nothing, fresco reports the missing data.
+        return Ok(());
+    };
+    let view = views.get(view_index.value()).ok_or_else(|| {
+        format!(
+            "refers to buffer view {}, the file has {}",
+            view_index.value(),
+            views.len()
+        )
+    })?;
+    let stride = view.byte_stride.map_or(item_bytes as u64, |s| s.0 as u64);
+    if stride < item_bytes as u64 {
+        return Err(format!(
+            "buffer view stride {stride} is smaller than its {item_bytes}-byte items"
+        ));
+    }
+    let offset = a.byte_offset.map_or(0, |o| o.0);
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|x| x.checked_add(offset))
+        .and_then(|x| x.checked_add(item_bytes as u64));
+    match end {
+        Some(end) if end <= view.byte_length.0 => Ok(()),
+        _ => Err(format!(
+            "{count} items of {item_bytes} bytes at offset {offset}, stride {stride} do not fit its buffer view of {} bytes",
+            view.byte_length.0
+        )),
     }
 }
 

@@ -297,6 +297,15 @@ impl SceneBuilder {
                 }
                 let normal =
                     Vector3::new(m.normals[3 * n], m.normals[3 * n + 1], m.normals[3 * n + 2]);
+                // tobj parses "inf" and "nan" (found by the obj fuzz target): refuse them
+                // here, at their line, rather than hand on a mesh that fails validation.
+                if !normal.iter().all(|c| c.is_finite()) {
+                    let message = format!("normal {n}: non-finite component");
+                    return Err(match nth_statement_line(path, "vn", n) {
+                        Some(line) => FormatError::text(path, line, message),
+                        None => FormatError::invalid(path, message),
+                    });
+                }
                 let v = map[v as usize] as usize;
                 match self.normal_first[v] {
                     None => self.normal_first[v] = Some(normal),

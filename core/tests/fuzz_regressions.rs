@@ -145,3 +145,78 @@ fn glb_image_without_a_mime_type_is_a_clear_error() {
     let e = fresco_core::gltf::read_glb(&path).unwrap_err().to_string();
     assert!(e.contains("image 0 has neither"), "{e}");
 }
+
+/// glb (pst's target), crash: a POSITION accessor of count 0 (a fresco GLB with one digit
+/// changed). gltf 1.4.1 computes the accessor's end as `offset + stride * (count - 1) + size`
+/// unchecked: an overflow panic where overflow checks are on, a wrapped extent where not.
+/// parse_glb now requires count >= 1 and the whole extent inside the buffer view, in checked
+/// arithmetic; a huge count is refused the same way.
+#[test]
+fn glb_accessor_of_count_zero_or_beyond_its_view_is_a_clear_error() {
+    let path = input("glb_accessor_count_zero.glb");
+    let e = fresco_core::gltf::read_glb(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("glb_accessor_count_zero.glb") && e.contains("accessor 0: count is 0"),
+        "{e}"
+    );
+
+    // The same triangle with counts no buffer view of 36 bytes can hold.
+    let dir = tempfile::tempdir().unwrap();
+    for (count, says) in [
+        (4u64, "4 items of 12 bytes"),
+        (u64::MAX / 2, "do not fit its buffer view of 36 bytes"),
+    ] {
+        let path = dir.path().join(format!("count_{count}.glb"));
+        std::fs::write(&path, one_triangle_glb(count)).unwrap();
+        let e = within(Duration::from_millis(100), || {
+            fresco_core::gltf::read_glb(&path)
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(says), "{e}");
+    }
+    // The same file with the right count reads.
+    let path = dir.path().join("count_3.glb");
+    std::fs::write(&path, one_triangle_glb(3)).unwrap();
+    let (mesh, _) = fresco_core::gltf::read_glb(&path).unwrap();
+    assert_eq!((mesh.positions.len(), mesh.faces.len()), (3, 1));
+}
+
+/// A GLB of one triangle whose POSITION accessor declares `count` items over a 36-byte view.
+fn one_triangle_glb(count: u64) -> Vec<u8> {
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":36}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],"accessors":[{{"bufferView":0,"count":{count},"componentType":5126,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}]}}"#
+    );
+    let mut json = json.into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let bin: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// obj, crash: `vn 0 0 inf` (tobj parses "inf" and "nan" as numbers). read_obj returned a mesh
+/// with a non-finite normal that `Mesh::validate` refuses. Now refused at the `vn` line.
+#[test]
+fn obj_non_finite_normal_is_refused_with_its_line() {
+    let path = input("obj_infinite_normal.obj");
+    let e = fresco_core::obj::read_obj(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("obj_infinite_normal.obj:5:") && e.contains("non-finite"),
+        "{e}"
+    );
+}

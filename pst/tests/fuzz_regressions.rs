@@ -48,6 +48,20 @@ fn glb_primitive_naming_a_missing_accessor_is_a_clear_error() {
     );
 }
 
+/// glb, crash: a POSITION accessor of count 0. gltf 1.4.1 computes its end as
+/// `offset + stride * (count - 1) + size` unchecked (an overflow panic in
+/// `fresco pst from-model`); `fresco_core::gltf::parse_glb` now checks every accessor's
+/// extent against its buffer view first.
+#[test]
+fn glb_accessor_of_count_zero_is_a_clear_error() {
+    let path = input("glb_accessor_count_zero.glb");
+    let m = error_of(TexturedModel::load(&path));
+    assert!(
+        m.contains("glb_accessor_count_zero.glb") && m.contains("count is 0"),
+        "{m}"
+    );
+}
+
 /// A small PST (200 samples on a unit sphere) in a temporary folder.
 fn small_pst(dir: &Path) -> fresco_pst::Pst {
     let positions: Vec<[f64; 3]> = (0..400)
