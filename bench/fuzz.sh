@@ -9,6 +9,7 @@
 #   bench/fuzz.sh                         # every target, 10M executions or 30 minutes each
 #   bench/fuzz.sh --seconds 60 ply_bytes  # one target for a minute
 #   bench/fuzz.sh --runs 100000           # a quick pass over every target
+#   NO_BUILD=1 bench/fuzz.sh obj           # run the targets as last built
 #
 # Needs: rustup's nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 # Corpora grow in fuzz/corpus/<target> (git-ignored) from the committed seeds in
@@ -38,7 +39,9 @@ if [[ ${#targets[@]} -eq 0 ]]; then
 fi
 
 echo "building ${#targets[@]} fuzz targets (nightly, release with debug assertions, no sanitizer)" >&2
-nice -n 19 cargo +nightly fuzz build -O -s none >&2
+if [[ -z "${NO_BUILD:-}" ]]; then
+    nice -n 19 cargo +nightly fuzz build -O -s none >&2
+fi
 bin_dir=target/x86_64-unknown-linux-gnu/release
 
 mkdir -p ../bench/out/fuzz
