@@ -15,7 +15,7 @@ wraps it in COLMAP's CPU pieces so that only the depth maps come from pyarchinit
 3. PatchMatch: `ppg_core.patchmatch_depth` per view on the undistorted grey image, with the
    package's own defaults except where noted (PM below): random initial planes in the depth range,
    ITERATIONS red-black sweeps, NCC over a (2*half_window+1)^2 window sampled every `step`
-   pixels, cost = mean of the best `top_k` sources, pixels with cost above `max_cost` dropped;
+   pixels, cost from the best `top_k` sources, pixels with cost above `max_cost` dropped;
    normals turned to face the camera (COLMAP's convention);
 4. written as COLMAP depth / normal maps (`stereo/depth_maps/NAME.photometric.bin`,
    `stereo/normal_maps/NAME.photometric.bin`: there is no geometric-consistency pass, so they
@@ -32,8 +32,9 @@ Usage (from the repository root):
     datasets/reference/.venv-dense/bin/pip install -r datasets/reference/requirements-dense.txt
     fresco synth temple --views 24 --size 640x480 -o T
     nice -n 5 datasets/reference/.venv-dense/bin/python datasets/reference/pyarchinit_dense.py T OUT
-Options: --sources N (default 8), --iterations N (default 4), --views a,b (only these
-reference views, for a quick look; fusion still runs on what was computed).
+Options: --sources N (default 6: the low end of COLMAP's and OpenMVS's 6-8, and the
+setting of the committed run; about 36 CPU-s a view at 640x480), --iterations N (default 4),
+--views a,b (only these reference views, for a quick look; fusion runs on what was computed).
 """
 import argparse
 import json
@@ -56,7 +57,7 @@ except ImportError as e:  # pragma: no cover - a clear message instead of a trac
         "into a venv (see the docstring)"
     )
 
-SOURCES = 8
+SOURCES = 6
 ITERATIONS = 4
 MIN_TRI_ANGLE_DEG = 1.0
 # ppg_core.patchmatch_depth's keyword defaults in 0.5.0, written out so the run records them.
@@ -193,6 +194,7 @@ def main():
         shutil.rmtree(ws)
     args.out.mkdir(parents=True, exist_ok=True)
     timings = {}
+    load_start = list(os.getloadavg())
     t_all, c_all = time.time(), cpu_seconds()
 
     with Stage("undistort", timings):
@@ -296,6 +298,7 @@ def main():
         "timings": timings,
         "per_view": per_view,
         "cpu_count": os.cpu_count(),
+        "load_average_at_start": load_start,
         "load_average_at_end": list(os.getloadavg()),
     }
     (args.out / "timing.json").write_text(json.dumps(report, indent=2) + "\n")
