@@ -46,9 +46,17 @@ struct RenderArgs {
     /// Rest-state mesh (same vertices and faces) the texture is attached to.
     #[arg(long)]
     rest: Option<PathBuf>,
-    /// Animation time in seconds (spin, pattern cycling).
+    /// Animation time in seconds (keys, spin, pattern cycling); with --frames, the first
+    /// frame's.
     #[arg(long, default_value_t = 0.0)]
     time: f64,
+    /// Render N frames, at --time + k / --fps, to <output stem>_0000.png, _0001.png, ...
+    /// (the tree is built once and its sprites updated from frame to frame).
+    #[arg(long)]
+    frames: Option<usize>,
+    /// Frames per second of --frames.
+    #[arg(long, default_value_t = 24.0, requires = "frames")]
+    fps: f64,
     /// Headlight shading.
     #[arg(long)]
     shaded: bool,
@@ -133,6 +141,25 @@ fn refuse_overwrite(input: &std::path::Path, output: &std::path::Path) -> anyhow
     Ok(())
 }
 
+/// `<output stem>_<k, 4 digits>.png` beside `output`.
+fn frame_path(output: &std::path::Path, k: usize) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map_or_else(|| "frame".into(), |s| s.to_string_lossy());
+    output.with_file_name(format!("{stem}_{k:04}.png"))
+}
+
+/// Encodes `img` as PNG and writes it atomically (a reader never sees half a file).
+fn write_png(img: &image::RgbImage, path: &std::path::Path) -> anyhow::Result<()> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    fresco_core::atomic_file::write_bytes_atomically(path, &bytes)?;
+    Ok(())
+}
+
 pub fn run(args: SpritesArgs, _ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
     match args.command {
         SpritesCommand::Render(a) => {
@@ -161,15 +188,41 @@ pub fn run(args: SpritesArgs, _ctx: &crate::Context) -> anyhow::Result<serde_jso
                 mip_samples: a.mip_samples,
                 ..RenderConfig::default()
             };
+            if let Some(frames) = a.frames {
+                if frames == 0 {
+                    bail!("--frames 0: nothing to render");
+                }
+                if !(a.fps > 0.0 && a.fps.is_finite()) {
+                    bail!("--fps {} must be positive", a.fps);
+                }
+                let outputs: Vec<PathBuf> = (0..frames).map(|k| frame_path(&a.output, k)).collect();
+                for o in &outputs {
+                    for p in [&a.mesh, &a.scene] {
+                        refuse_overwrite(p, o)?;
+                    }
+                }
+                let times: Vec<f64> = (0..frames).map(|k| a.time + k as f64 / a.fps).collect();
+                let report = pipeline::render_frames(
+                    &mesh,
+                    rest.as_ref(),
+                    &scene,
+                    &view,
+                    &cfg,
+                    &times,
+                    |k, img| {
+                        write_png(&img, &outputs[k])
+                            .map_err(|e| fresco_sprites::SpriteError::Input(format!("{e:#}")))
+                    },
+                )
+                .with_context(|| format!("rendering {}", a.scene.display()))?;
+                return Ok(
+                    serde_json::json!({ "outputs": outputs, "times": times, "frames": report }),
+                );
+            }
             let (img, memory) =
                 pipeline::render_scene(&mesh, rest.as_ref(), &scene, &view, &cfg, a.time)
                     .with_context(|| format!("rendering {}", a.scene.display()))?;
-            let mut bytes = Vec::new();
-            img.write_to(
-                &mut std::io::Cursor::new(&mut bytes),
-                image::ImageFormat::Png,
-            )?;
-            fresco_core::atomic_file::write_bytes_atomically(&a.output, &bytes)?;
+            write_png(&img, &a.output)?;
             Ok(serde_json::json!({ "output": a.output, "memory": memory }))
         }
         SpritesCommand::Bake(a) => {

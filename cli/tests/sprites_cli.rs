@@ -36,7 +36,7 @@ fn bad_scenes_fail_cleanly_naming_the_sprite() {
         serde_json::from_str(&std::fs::read_to_string(examples().join("gears.json")).unwrap())
             .unwrap();
     let pattern = |k: usize| s(&examples().join(good["patterns"][k].as_str().unwrap())).to_string();
-    let cases: [Case; 5] = [
+    let cases: [Case; 8] = [
         (
             "unknown field",
             Box::new(|v| v["sprites"][3]["colour"] = 1.into()),
@@ -56,6 +56,28 @@ fn bad_scenes_fail_cleanly_naming_the_sprite() {
             "zero size",
             Box::new(|v| v["sprites"][2]["size"] = serde_json::json!([0.0, 0.3])),
             "sprite 2: size",
+        ),
+        (
+            "unsorted keys",
+            Box::new(|v| {
+                v["sprites"][3]["keys"] = serde_json::json!([{"t": 0}, {"t": 2}, {"t": 1}]);
+            }),
+            "sprite 3, key 2: t 1 is not after key 1's t 2",
+        ),
+        (
+            "zero size in a key",
+            Box::new(|v| {
+                v["sprites"][4]["keys"] =
+                    serde_json::json!([{"t": 0}, {"t": 1, "size": [0.0, 0.3]}]);
+            }),
+            "sprite 4, key 1: size [0.0, 0.3] must be positive",
+        ),
+        (
+            "unknown field in a key",
+            Box::new(|v| {
+                v["sprites"][5]["keys"] = serde_json::json!([{"t": 0, "colour": 2}]);
+            }),
+            "sprite 5, key 0: unknown field `colour`",
         ),
         (
             "overflowing number",
@@ -145,6 +167,73 @@ fn example_scene_renders_and_octree_is_written() {
     assert!(tex.texels > 1000);
 }
 
+/// `--frames 3 --fps 4` writes `<stem>_0000.png` to `_0002.png` from one tree updated frame
+/// to frame: frame 0 is the `--time 0` render byte for byte, frame 2 the `--time 0.5` one
+/// (the updated tree is the tree built at that time), and the keyed gears have moved by then.
+#[test]
+fn frames_render_the_keyed_scene_from_one_updated_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = examples().join("blob.ply");
+    let scene = examples().join("gears_keys.json");
+    let render = |extra: &[&str], png: &Path| {
+        let mut args = vec![
+            "sprites",
+            "render",
+            s(&mesh),
+            s(&scene),
+            "-o",
+            s(png),
+            "--size",
+            "96x72",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        fresco(&args)
+    };
+    let anim = dir.path().join("anim.png");
+    let out = render(&["--frames", "3", "--fps", "4"], &anim);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let frames: Vec<PathBuf> = (0..3)
+        .map(|k| dir.path().join(format!("anim_{k:04}.png")))
+        .collect();
+    assert_eq!(summary["outputs"], serde_json::json!(frames));
+    assert_eq!(summary["frames"]["rebuilds"], 0);
+    assert_eq!(summary["frames"]["updated"], 2 * 16, "every gear moves");
+    assert!(!anim.exists() && !dir.path().join("anim_0003.png").exists());
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    let (t0, t05) = (dir.path().join("t0.png"), dir.path().join("t05.png"));
+    for (t, png) in [("0", &t0), ("0.5", &t05)] {
+        let out = render(&["--time", t], png);
+        assert!(out.status.success());
+    }
+    assert!(
+        bytes(&frames[0]) == bytes(&t0),
+        "frame 0 is the --time 0 render"
+    );
+    assert!(
+        bytes(&frames[2]) == bytes(&t05),
+        "frame 2 is the --time 0.5 render"
+    );
+    assert!(bytes(&frames[2]) != bytes(&frames[0]), "the gears moved");
+    assert_eq!(
+        image::open(&frames[1]).unwrap().to_rgb8().dimensions(),
+        (96, 72)
+    );
+    // Nothing to render, or no time step: refused, nothing written.
+    let bad = dir.path().join("bad.png");
+    for extra in [&["--frames", "0"][..], &["--frames", "2", "--fps", "0"]] {
+        let out = render(extra, &bad);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("--f"), "{err}");
+        assert!(!dir.path().join("bad_0000.png").exists());
+    }
+}
+
 /// `--distance` moves the camera out; there the tree's cell means change the render, and
 /// `--no-tree-mip` gives the plain lookups (the measured effect is in
 /// fresco-sprites' tree_mip_render test); a distance of 0 is refused.
@@ -214,7 +303,14 @@ fn every_example_scene_bakes_as_it_is() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    for case in ["lapped", "gears", "stars", "blobby", "voronoi"] {
+    for case in [
+        "lapped",
+        "gears",
+        "stars",
+        "blobby",
+        "voronoi",
+        "gears_keys",
+    ] {
         let glb = dir.path().join(format!("{case}.glb"));
         let out = fresco(&[
             "sprites",

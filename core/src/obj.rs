@@ -268,6 +268,20 @@ impl SceneBuilder {
                             ),
                         ));
                     }
+                    // tobj parses "inf", "nan" and out-of-range exponents (found by the obj
+                    // fuzz target): refuse them at their `vt` line.
+                    let (u, v) = (m.texcoords[2 * t], m.texcoords[2 * t + 1]);
+                    if !(u.is_finite()
+                        && v.is_finite()
+                        && (u as f32).is_finite()
+                        && (v as f32).is_finite())
+                    {
+                        let message = format!("texture coordinate {t}: non-finite component");
+                        return Err(match nth_statement_line(path, "vt", t) {
+                            Some(line) => FormatError::text(path, line, message),
+                            None => FormatError::invalid(path, message),
+                        });
+                    }
                     // OBJ's v points up; fresco's down.
                     corner[c] = [
                         m.texcoords[2 * t] as f32,

@@ -220,3 +220,15 @@ fn obj_non_finite_normal_is_refused_with_its_line() {
         "{e}"
     );
 }
+
+/// obj, crash: `vt 0.1e308125 0.75` (an exponent out of range parses as infinity). read_obj
+/// returned corner UVs `Mesh::validate` refuses. Now refused at the `vt` line.
+#[test]
+fn obj_non_finite_texture_coordinate_is_refused_with_its_line() {
+    let path = input("obj_infinite_texcoord.obj");
+    let e = fresco_core::obj::read_obj(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("obj_infinite_texcoord.obj:6:") && e.contains("texture coordinate 2"),
+        "{e}"
+    );
+}

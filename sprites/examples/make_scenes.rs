@@ -1,7 +1,7 @@
 //! Writes the example sprite scenes of `datasets/sprites/`: the paper's figure-1 cases
 //! (lapped-like covering, gears, stars, blobby painting, Voronoi) on the synthetic blob
 //! (`fresco_datasets::shapes::blob(4, 7)`, saved as `blob.ply`), with their procedural
-//! pattern images. Deterministic (seeded `fresco_core::Rng`); every sprite kept inserts into
+//! pattern images, and `gears_keys.json` (gears that travel by keyframes). Deterministic (seeded `fresco_core::Rng`); every sprite kept inserts into
 //! the scene's tree, so `fresco sprites render/bake` accept the files as they are.
 //!
 //! `cargo run --release -p fresco-sprites --example make_scenes [out_dir]`
@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use fresco_core::{Mesh, Rng};
-use fresco_sprites::scene::{BlendSettings, SceneFile, SpriteSpec};
+use fresco_sprites::scene::{BlendSettings, Key, SceneFile, SpriteSpec};
 use fresco_sprites::{BlendConfig, BlendMode, Pattern, SpriteTree, TreeConfig};
 use image::{Rgba, RgbaImage};
 
@@ -89,6 +89,10 @@ fn main() {
         std::fs::write(out.join(format!("{name}.json")), json + "\n").unwrap();
         println!("{name}: {} sprites", file.sprites.len());
     }
+    let file = keyed_gears(&mesh, &pats);
+    let json = serde_json::to_string_pretty(&file).unwrap();
+    std::fs::write(out.join("gears_keys.json"), json + "\n").unwrap();
+    println!("gears_keys: {} sprites", file.sprites.len());
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -135,27 +139,7 @@ fn scene(
     let mut tries = 0;
     while sprites.len() < count && tries < count * 20 {
         tries += 1;
-        // An area-uniform surface point with its interpolated normal.
-        let mut r = rng.uniform() * total;
-        let f = areas.iter().position(|&a| {
-            r -= a;
-            r <= 0.0
-        });
-        let f = f.unwrap_or(areas.len() - 1);
-        let (mut a, mut b) = (rng.uniform(), rng.uniform());
-        if a + b > 1.0 {
-            (a, b) = (1.0 - a, 1.0 - b);
-        }
-        let w = [1.0 - a - b, a, b];
-        let ids = mesh.faces[f];
-        let mut p = [0.0; 3];
-        let mut n = [0.0; 3];
-        for k in 0..3 {
-            for ax in 0..3 {
-                p[ax] += w[k] * mesh.positions[ids[k] as usize][ax];
-                n[ax] += w[k] * normals[ids[k] as usize][ax];
-            }
-        }
+        let (p, n) = surface_point(mesh, &areas, total, &normals, &mut rng);
         let s = rng.range(sizes.0, sizes.1);
         let k = sprites.len();
         let spec = SpriteSpec {
@@ -182,6 +166,7 @@ fn scene(
                 Vec::new()
             },
             cycle_fps: if name == "stars" { 3.0 } else { 0.0 },
+            keys: Vec::new(),
         };
         let Ok(sprite) = spec.at_time(0.0) else {
             continue;
@@ -196,6 +181,143 @@ fn scene(
         bounds: None,
         patterns: pnames.iter().map(|n| format!("patterns/{n}.png")).collect(),
         sprites,
+    }
+}
+
+/// An area-uniform surface point with its interpolated normal.
+fn surface_point(
+    mesh: &Mesh,
+    areas: &[f64],
+    total: f64,
+    normals: &[fresco_core::nalgebra::Vector3<f64>],
+    rng: &mut Rng,
+) -> ([f64; 3], [f64; 3]) {
+    let mut r = rng.uniform() * total;
+    let f = areas.iter().position(|&a| {
+        r -= a;
+        r <= 0.0
+    });
+    let f = f.unwrap_or(areas.len() - 1);
+    let (mut a, mut b) = (rng.uniform(), rng.uniform());
+    if a + b > 1.0 {
+        (a, b) = (1.0 - a, 1.0 - b);
+    }
+    let w = [1.0 - a - b, a, b];
+    let ids = mesh.faces[f];
+    let mut p = [0.0; 3];
+    let mut n = [0.0; 3];
+    for k in 0..3 {
+        for ax in 0..3 {
+            p[ax] += w[k] * mesh.positions[ids[k] as usize][ax];
+            n[ax] += w[k] * normals[ids[k] as usize][ax];
+        }
+    }
+    (p, n)
+}
+
+/// `gears_keys.json`: gears that spin as in `gears.json` and also travel: keyframes at
+/// t = 0 (the sprite's own values: a key with `t` alone), t = 1 (a nearby surface point, its
+/// normal, 1.25x the size, a quarter turn) and t = 2 (back home, half a turn: only
+/// `rotation` given). Every gear is kept only if the tree takes it at every 1/8 s of the
+/// animation (0 to 2.5 s), so `fresco sprites render --frames` accepts the file as it is.
+fn keyed_gears(mesh: &Mesh, pats: &[(String, RgbaImage)]) -> SceneFile {
+    let pnames = ["gear_a", "gear_b"];
+    let patterns: Vec<Pattern> = pnames
+        .iter()
+        .map(|n| Pattern::new(&pats.iter().find(|(p, _)| p == n).unwrap().1))
+        .collect();
+    let tree_cfg = TreeConfig {
+        n: 4,
+        o_max: 8,
+        max_depth: 8,
+    };
+    let bb = mesh.bounding_box().unwrap();
+    let (min, size) = SpriteTree::cube_around(
+        [bb.min.x, bb.min.y, bb.min.z],
+        [bb.max.x, bb.max.y, bb.max.z],
+        0.05,
+    );
+    let areas = mesh.face_areas();
+    let total: f64 = areas.iter().sum();
+    let normals = mesh.vertex_normals();
+    let mut rng = Rng::new(2000);
+    let mut specs: Vec<SpriteSpec> = Vec::new();
+    let times: Vec<f64> = (0..=20).map(|k| k as f64 / 8.0).collect();
+    let mut tries = 0;
+    while specs.len() < 16 && tries < 2000 {
+        tries += 1;
+        let (p, n) = surface_point(mesh, &areas, total, &normals, &mut rng);
+        let (q, m) = surface_point(mesh, &areas, total, &normals, &mut rng);
+        let d = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>().sqrt();
+        if !(0.25..0.45).contains(&d) {
+            continue;
+        }
+        let s = round6(rng.range(0.4, 0.55));
+        let rotation = round6(rng.range(0.0, 360.0));
+        let k = specs.len();
+        let spec = SpriteSpec {
+            center: p.map(round6),
+            normal: n.map(round6),
+            up: None,
+            size: [s, s],
+            depth: Some(round6(s * 0.4)),
+            rotation,
+            pattern: (k % 2) as u32,
+            order: k as i64,
+            blend: BlendMode::Over,
+            attributes: Vec::new(),
+            spin: if k.is_multiple_of(2) { -45.0 } else { 45.0 },
+            cycle: Vec::new(),
+            cycle_fps: 0.0,
+            keys: vec![
+                Key {
+                    t: 0.0,
+                    ..Key::default()
+                },
+                Key {
+                    t: 1.0,
+                    center: Some(q.map(round6)),
+                    normal: Some(m.map(round6)),
+                    size: Some([round6(1.25 * s); 2]),
+                    rotation: Some(round6(rotation + 90.0)),
+                },
+                Key {
+                    t: 2.0,
+                    rotation: Some(round6(rotation + 180.0)),
+                    ..Key::default()
+                },
+            ],
+        };
+        if spec.check(k, patterns.len()).is_err() {
+            continue;
+        }
+        let fits = times.iter().all(|&t| {
+            let mut tree = SpriteTree::new(
+                min,
+                size,
+                patterns.clone(),
+                tree_cfg.clone(),
+                &BlendConfig::default(),
+            )
+            .unwrap();
+            specs
+                .iter()
+                .chain([&spec])
+                .all(|sp| sp.at_time(t).is_ok_and(|x| tree.add(x).is_ok()))
+        });
+        if fits {
+            specs.push(spec);
+        }
+    }
+    SceneFile {
+        tree: tree_cfg,
+        blend: BlendSettings::default(),
+        bounds: None,
+        patterns: pnames.iter().map(|n| format!("patterns/{n}.png")).collect(),
+        sprites: specs
+            .iter()
+            .map(|s| serde_json::to_value(s).unwrap())
+            .collect(),
     }
 }
 

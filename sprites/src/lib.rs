@@ -15,11 +15,14 @@
 //!   views);
 //! - [`Sprite`], [`Placement`], [`BlendMode`] (`sprite.rs`), [`Pattern`] (`pattern.rs`),
 //!   [`Query`], [`Footprint`], [`BlendConfig`] (`blend.rs`);
-//! - [`scene`]: the JSON sprite-scene format; [`octree`]: octree textures; [`render`]:
+//! - [`scene`]: the JSON sprite-scene format, with keyframes ([`scene::SpriteSpec::keyed_at`],
+//!   [`scene::SpriteSpec::at_time`], [`scene::SpriteSpec::check`]) and [`scene::Scene::update`]
+//!   (a tree moved to another time by [`SpriteTree::update`] per sprite); [`octree`]: octree textures; [`render`]:
 //!   images through core's rasteriser with screen-space footprints (and the rest-surface
 //!   samples of the cell means); [`bake`]: the composite texture written into a mesh's UV
 //!   atlas; [`pipeline`]: the `fresco sprites` verbs ([`pipeline::View`]: orbit camera at a
-//!   multiple of the framing distance).
+//!   multiple of the framing distance; [`pipeline::render_frames`]: an animation, one tree
+//!   updated from frame to frame).
 
 // Loops over the 3 axes index several arrays at once; iterator chains would read worse.
 #![allow(clippy::needless_range_loop)]

@@ -16,7 +16,7 @@ use crate::render::{
     RenderConfig, Rest, downsample, orbit_camera, per_query, render, rest_samples,
 };
 use crate::scene::Scene;
-use crate::tree::MemoryReport;
+use crate::tree::{MemoryReport, SpriteTree};
 use crate::tree_mip::TreeMip;
 
 /// A model: its mesh and the images its faces sample (`None`: a material without one).
@@ -129,28 +129,133 @@ pub fn render_scene(
     config: &RenderConfig,
     t: f64,
 ) -> Result<(RgbImage, MemoryReport)> {
-    config.check()?;
-    let rest = Rest::of(mesh, rest)?;
-    let bb = Mesh::from_triangles(rest.positions.clone(), Vec::new())
-        .bounding_box()
-        .ok_or_else(|| SpriteError::Input("the mesh has no vertices".into()))?;
-    let tree = scene.build(
-        [bb.min.x, bb.min.y, bb.min.z],
-        [bb.max.x, bb.max.y, bb.max.z],
-        t,
-    )?;
-    let vb = mesh.bounding_box().expect("has vertices");
-    let (camera, pose) = view.camera(
-        [vb.min.x, vb.min.y, vb.min.z],
-        [vb.max.x, vb.max.y, vb.max.z],
-    )?;
-    let mip = (config.tree_mip && config.filter)
-        .then(|| TreeMip::new(&tree, &rest_samples(mesh, &rest, config.mip_samples)));
-    let img = render(mesh, &rest, &camera, &pose, config, &|qs, out| match &mip {
-        Some(m) => m.lookup_many(&tree, qs, out),
-        None => tree.lookup_many(qs, out),
-    })?;
-    Ok((img, tree.memory_on(rest.surface_area(mesh))))
+    let stage = Stage::new(mesh, rest, view, config)?;
+    let tree = scene.build(stage.lo, stage.hi, t)?;
+    let img = stage.render(mesh, &tree, config)?;
+    Ok((img, tree.memory_on(stage.area)))
+}
+
+/// What the frames of [`render_frames`] took.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FramesReport {
+    pub frames: usize,
+    /// Sprite updates ([`crate::SpriteTree::update`]) over all frames.
+    pub updated: usize,
+    /// Pattern changes alone (no tree change) over all frames.
+    pub repatterned: usize,
+    /// Frames whose tree was built again because an update failed ([`Scene::update`]).
+    pub rebuilds: usize,
+    /// Wall seconds of the first frame's tree build and of the updates after it.
+    pub build_seconds: f64,
+    pub update_seconds: f64,
+    /// The last frame's tree.
+    pub memory: MemoryReport,
+}
+
+/// Renders the scene at each of `times` (seconds) as [`render_scene`] does, handing frame
+/// `k`'s image to `emit(k, image)`. The tree is built once, at `times[0]`, and moved from
+/// frame to frame by [`Scene::update`] (section 5.2 of the sprites paper: animating sprites
+/// is changing their parameters, the tree stays minimal), so each frame equals
+/// [`render_scene`] at its time. Every frame's sprites are checked before the first is
+/// rendered, so a bad time or sprite emits nothing.
+pub fn render_frames(
+    mesh: &Mesh,
+    rest: Option<&Mesh>,
+    scene: &Scene,
+    view: &View,
+    config: &RenderConfig,
+    times: &[f64],
+    mut emit: impl FnMut(usize, RgbImage) -> Result<()>,
+) -> Result<FramesReport> {
+    if times.is_empty() {
+        return Err(SpriteError::Input("no frames to render".into()));
+    }
+    for &t in times {
+        if !t.is_finite() {
+            return Err(SpriteError::Input(format!("frame time {t} is not finite")));
+        }
+        scene.sprites_at(t)?;
+    }
+    let stage = Stage::new(mesh, rest, view, config)?;
+    let clock = std::time::Instant::now();
+    let mut tree = scene.build(stage.lo, stage.hi, times[0])?;
+    let build_seconds = clock.elapsed().as_secs_f64();
+    let (mut updated, mut repatterned, mut rebuilds, mut update_seconds) = (0, 0, 0, 0.0);
+    for (k, &t) in times.iter().enumerate() {
+        if k > 0 {
+            let clock = std::time::Instant::now();
+            let r = scene.update(&mut tree, t)?;
+            update_seconds += clock.elapsed().as_secs_f64();
+            updated += r.updated;
+            repatterned += r.repatterned;
+            rebuilds += usize::from(r.rebuilt);
+        }
+        emit(k, stage.render(mesh, &tree, config)?)?;
+    }
+    Ok(FramesReport {
+        frames: times.len(),
+        updated,
+        repatterned,
+        rebuilds,
+        build_seconds,
+        update_seconds,
+        memory: tree.memory_on(stage.area),
+    })
+}
+
+/// What the renders of one mesh and view share whatever the sprites do: the rest state and
+/// its bounds (the tree's cube), the camera, the samples of the tree's cell means.
+struct Stage {
+    rest: Rest,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    area: f64,
+    camera: Camera,
+    pose: CamFromWorld,
+    /// Rest-surface samples for [`TreeMip::new`]; `None` without tree mip-mapping.
+    samples: Option<Vec<crate::blend::Query>>,
+}
+
+impl Stage {
+    fn new(mesh: &Mesh, rest: Option<&Mesh>, view: &View, config: &RenderConfig) -> Result<Stage> {
+        config.check()?;
+        let rest = Rest::of(mesh, rest)?;
+        let bb = Mesh::from_triangles(rest.positions.clone(), Vec::new())
+            .bounding_box()
+            .ok_or_else(|| SpriteError::Input("the mesh has no vertices".into()))?;
+        let vb = mesh.bounding_box().expect("has vertices");
+        let (camera, pose) = view.camera(
+            [vb.min.x, vb.min.y, vb.min.z],
+            [vb.max.x, vb.max.y, vb.max.z],
+        )?;
+        let samples = (config.tree_mip && config.filter)
+            .then(|| rest_samples(mesh, &rest, config.mip_samples));
+        Ok(Stage {
+            area: rest.surface_area(mesh),
+            rest,
+            lo: [bb.min.x, bb.min.y, bb.min.z],
+            hi: [bb.max.x, bb.max.y, bb.max.z],
+            camera,
+            pose,
+            samples,
+        })
+    }
+
+    /// The image of `tree`; its cell means are taken again (they follow the sprites).
+    fn render(&self, mesh: &Mesh, tree: &SpriteTree, config: &RenderConfig) -> Result<RgbImage> {
+        let mip = self.samples.as_ref().map(|s| TreeMip::new(tree, s));
+        render(
+            mesh,
+            &self.rest,
+            &self.camera,
+            &self.pose,
+            config,
+            &|qs, out| match &mip {
+                Some(m) => m.lookup_many(tree, qs, out),
+                None => tree.lookup_many(qs, out),
+            },
+        )
+    }
 }
 
 /// The pixels of `view` of `mesh` whose every sample of a `supersample` x `supersample`

@@ -261,7 +261,7 @@ impl SpriteTree {
         self.prepared[id] = Prepared::new(&sprite);
         self.sprites[id] = Some(sprite);
         if let Err(e) = self.insert_node(0, 0, [0; 3], id) {
-            self.remove_node(0, 0, [0; 3], id);
+            self.remove_node(0, 0, [0; 3], id, true);
             self.sprites[id] = None;
             self.free_ids.push(id);
             return Err(e);
@@ -275,7 +275,7 @@ impl SpriteTree {
             return Err(SpriteError::NoSprite(id));
         }
         self.flat.take();
-        self.remove_node(0, 0, [0; 3], id);
+        self.remove_node(0, 0, [0; 3], id, true);
         self.free_ids.push(id);
         Ok(self.sprites[id].take().expect("checked"))
     }
@@ -284,6 +284,13 @@ impl SpriteTree {
     /// sprite and the tree stay as they were: the paper's insertion test is order dependent
     /// (the old sprite may not fit back once its cells collapsed), so the tree is restored
     /// from a copy, which costs a copy of the pool per update.
+    ///
+    /// The old sprite is taken out without collapsing, the new one inserted, and only then
+    /// are the nodes under the old volume collapsed where they no longer need splitting
+    /// (section 5.2's deletion, deferred): a sprite that moves a little stays in the same
+    /// crowded cells, which removal-then-insertion would collapse and split again, moving
+    /// every sprite of the cell twice. The result is the same minimal tree (it depends only
+    /// on the set of sprites).
     pub fn update(&mut self, id: usize, sprite: Sprite) -> Result<()> {
         sprite
             .check(self.patterns.len())
@@ -298,11 +305,15 @@ impl SpriteTree {
             self.sprites[id].clone(),
             self.prepared[id],
         );
-        self.remove(id)?;
+        self.flat.take();
+        self.remove_node(0, 0, [0; 3], id, false);
+        self.free_ids.push(id);
+        let old = self.sprites[id].take().expect("checked");
         // The id just freed is on top of the free list: add() reuses it.
         match self.add(sprite) {
             Ok(new_id) => {
                 debug_assert_eq!(new_id, id);
+                self.collapse_under(0, 0, [0; 3], &old);
                 Ok(())
             }
             Err(e) => {
@@ -430,7 +441,7 @@ impl SpriteTree {
 
     /// Removes `id` from the cells of `node` its volume meets; collapses children that no
     /// longer need to be split.
-    fn remove_node(&mut self, node: u32, level: u32, origin: [u32; 3], id: usize) {
+    fn remove_node(&mut self, node: u32, level: u32, origin: [u32; 3], id: usize, collapse: bool) {
         for ci in 0..self.pool.cells_per_node() {
             let co = self.cell_origin(origin, ci);
             let (lo, hi) = self.cell_box(level, co);
@@ -454,11 +465,35 @@ impl SpriteTree {
                 }
                 TAG_CHILD => {
                     let child = payload(c);
-                    self.remove_node(child, level + 1, co.map(|v| v * self.config.n), id);
-                    self.try_collapse(node, ci, child);
+                    let child_origin = co.map(|v| v * self.config.n);
+                    self.remove_node(child, level + 1, child_origin, id, collapse);
+                    if collapse {
+                        self.try_collapse(node, ci, child);
+                    }
                 }
                 _ => {}
             }
+        }
+    }
+
+    /// The collapses [`SpriteTree::remove_node`] skipped for sprite `old` (no longer in the
+    /// tree): bottom-up over the nodes under its volume.
+    fn collapse_under(&mut self, node: u32, level: u32, origin: [u32; 3], old: &Sprite) {
+        for ci in 0..self.pool.cells_per_node() {
+            // Leaves and empty cells first: they cannot collapse, and the tag is cheaper
+            // than the volume test.
+            let c = self.pool.node(self.pool.index(node))[ci];
+            if tag(c) != TAG_CHILD {
+                continue;
+            }
+            let co = self.cell_origin(origin, ci);
+            let (lo, hi) = self.cell_box(level, co);
+            if !meets_box(old, GROW, lo, hi) {
+                continue;
+            }
+            let child = payload(c);
+            self.collapse_under(child, level + 1, co.map(|v| v * self.config.n), old);
+            self.try_collapse(node, ci, child);
         }
     }
 

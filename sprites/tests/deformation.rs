@@ -55,7 +55,14 @@ fn sprites_follow_the_rest_state_of_a_deformed_mesh() {
 fn every_example_scene_loads_and_builds() {
     let mesh = fresco_core::ply::read_mesh(root().join("blob.ply")).unwrap();
     let bb = mesh.bounding_box().unwrap();
-    for case in ["lapped", "gears", "stars", "blobby", "voronoi"] {
+    for case in [
+        "lapped",
+        "gears",
+        "stars",
+        "blobby",
+        "voronoi",
+        "gears_keys",
+    ] {
         let scene = Scene::load(&root().join(format!("{case}.json"))).unwrap();
         let tree = scene
             .build(
