@@ -41,9 +41,10 @@ pub struct FeaturesArgs {
     /// Do not up-sample photos 2x before the first octave (faster, fewer small features).
     #[arg(long)]
     pub no_upsample: bool,
-    /// Drop keypoints on the object's outline when the photos have a plain background (for a
-    /// smooth object on a plain backdrop: its outline is an occluding contour, which biases
-    /// the poses; see sfm/src/features/plain_background.rs).
+    /// Drop keypoints on the object's outline when the photos have a plain background, except
+    /// on sharp corners of the outline (for a smooth object on a plain backdrop: its outline
+    /// is an occluding contour, which biases the poses; see
+    /// sfm/src/features/plain_background.rs).
     #[arg(long)]
     pub drop_outline: bool,
     /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in

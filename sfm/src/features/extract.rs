@@ -23,7 +23,7 @@ use crate::features::dog::{DetectorConfig, detect_extrema};
 use crate::features::feature_file::{Features, Keypoint};
 use crate::features::orientation::{OrientationConfig, dominant_orientations};
 use crate::features::plain_background::{
-    PlainBackgroundConfig, plain_background, touches_background,
+    PlainBackgroundConfig, boundary_bend, plain_background, touches_background,
 };
 use crate::features::scale_space::{ScaleSpaceConfig, build_scale_space, downscale_area};
 
@@ -186,7 +186,7 @@ pub fn extract_features_reporting(
     } else {
         None
     };
-    // DoG extrema off the outline, and how many were on it.
+    // DoG extrema off the outline (or on a corner of it), and how many were dropped.
     let detect = |detector: &DetectorConfig| {
         let mut extrema = detect_extrema(&space, detector);
         let before = extrema.len();
@@ -198,6 +198,8 @@ pub fn extract_features_reporting(
                 let y = octave.step * e.y + octave.offset - 0.5;
                 let radius = pb.blob_radius_sigmas * e.sigma_octave * octave.step + pb.edge_px;
                 !touches_background(mask, work.width, x, y, radius)
+                    || boundary_bend(mask, work.width, x, y, radius)
+                        .is_some_and(|b| b >= pb.corner_min_bend)
             });
         }
         let dropped = before - extrema.len();
