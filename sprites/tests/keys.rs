@@ -4,10 +4,13 @@
 //! with that frame's sprites and of the brute-force evaluation, bit for bit, for every blend
 //! mode, and stays minimal with the same shape.
 
+mod support;
+
 use fresco_core::Rng;
 use fresco_sprites::scene::{Key, Scene, SpriteSpec};
-use fresco_sprites::{BlendConfig, BlendMode, Footprint, Pattern, Query, TreeConfig};
+use fresco_sprites::{BlendConfig, BlendMode, Pattern, Query, TreeConfig};
 use image::{Rgba, RgbaImage};
+use support::{random_query, unit};
 
 /// A radial-alpha disc (tabulated distance, as blobby and Voronoi patterns are), a
 /// hard-edged square ring and half-transparent stripes.
@@ -31,16 +34,6 @@ fn patterns() -> Vec<Pattern> {
         Rgba([if x % 4 < 2 { 255 } else { 30 }, 60, 120, 160])
     });
     [disc, ring, stripes].iter().map(Pattern::new).collect()
-}
-
-fn unit(rng: &mut Rng) -> [f64; 3] {
-    loop {
-        let v = [0; 3].map(|_| rng.range(-1.0, 1.0));
-        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        if l > 0.1 && l <= 1.0 {
-            return v.map(|c| c / l);
-        }
-    }
 }
 
 /// `p` moved by up to `r` in a random direction, back onto the unit sphere.
@@ -114,24 +107,6 @@ fn scene(rng: &mut Rng, count: usize, mode: Option<BlendMode>) -> Scene {
     }
 }
 
-/// A point near the unit sphere with a normal (mostly) and a footprint (half the time).
-fn random_query(rng: &mut Rng) -> Query {
-    let n = unit(rng);
-    let r = 1.0 + rng.range(-0.03, 0.03);
-    let tilt = unit(rng);
-    let normal = [0, 1, 2].map(|a| (n[a] + 0.3 * tilt[a]) as f32);
-    let l = (normal.iter().map(|v| v * v).sum::<f32>()).sqrt();
-    let k = 10f64.powf(rng.range(-4.0, -1.0)) as f32;
-    Query {
-        p: n.map(|v| (v * r) as f32),
-        normal: (rng.below(4) != 0).then(|| normal.map(|v| v / l)),
-        footprint: (rng.below(2) == 0).then(|| Footprint {
-            dpdx: unit(rng).map(|v| v as f32 * k),
-            dpdy: unit(rng).map(|v| v as f32 * k * 0.5),
-        }),
-    }
-}
-
 #[test]
 fn updated_tree_equals_a_tree_built_at_each_frame_and_brute_force() {
     let (lo, hi) = ([-1.1; 3], [1.1; 3]);
@@ -167,7 +142,7 @@ fn updated_tree_equals_a_tree_built_at_each_frame_and_brute_force() {
             }
             let order = tree.user_order();
             assert_eq!(order, fresh.user_order());
-            let queries: Vec<Query> = (0..3000).map(|_| random_query(&mut rng)).collect();
+            let queries: Vec<Query> = (0..3000).map(|_| random_query(&mut rng, 0.03)).collect();
             let mut many = vec![[0f32; 4]; queries.len()];
             tree.lookup_many(&queries, &mut many);
             for (q, m) in queries.iter().zip(&many) {

@@ -3,12 +3,15 @@
 //! order (`lookup_many`), and stays so through deletions and updates;
 //! insertion failures are errors that leave the tree unchanged.
 
+mod support;
+
 use fresco_core::Rng;
 use fresco_sprites::{
     BlendConfig, BlendMode, Footprint, Pattern, Placement, Query, Sprite, SpriteError, SpriteTree,
     TreeConfig,
 };
 use image::{Rgba, RgbaImage};
+use support::{random_query, unit};
 
 /// A radial-alpha disc with a coloured ring (a tabulated distance in alpha, as blobby and
 /// Voronoi patterns are), a hard-edged star and a half-transparent stripe pattern.
@@ -33,20 +36,6 @@ fn patterns() -> Vec<Pattern> {
     [disc, star, stripes].iter().map(Pattern::new).collect()
 }
 
-fn unit(rng: &mut Rng) -> [f64; 3] {
-    loop {
-        let v = [
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        ];
-        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        if l > 0.1 && l <= 1.0 {
-            return v.map(|c| c / l);
-        }
-    }
-}
-
 /// A sprite on the unit sphere at a random point, random size and rotation.
 fn random_sprite(rng: &mut Rng, mode: Option<BlendMode>, order: i64) -> Sprite {
     let n = unit(rng);
@@ -66,23 +55,6 @@ fn random_sprite(rng: &mut Rng, mode: Option<BlendMode>, order: i64) -> Sprite {
         blend,
     )
     .unwrap()
-}
-
-fn random_query(rng: &mut Rng) -> Query {
-    let n = unit(rng);
-    let r = 1.0 + rng.range(-0.02, 0.02);
-    let tilt = unit(rng);
-    let normal = [0, 1, 2].map(|a| (n[a] + 0.3 * tilt[a]) as f32);
-    let l = (normal.iter().map(|v| v * v).sum::<f32>()).sqrt();
-    let k = 10f64.powf(rng.range(-4.0, -1.0)) as f32;
-    Query {
-        p: n.map(|v| (v * r) as f32),
-        normal: (rng.below(4) != 0).then(|| normal.map(|v| v / l)),
-        footprint: (rng.below(2) == 0).then(|| Footprint {
-            dpdx: unit(rng).map(|v| v as f32 * k),
-            dpdy: unit(rng).map(|v| v as f32 * k * 0.5),
-        }),
-    }
 }
 
 fn tree(n: u32, o_max: usize) -> SpriteTree {
@@ -117,7 +89,7 @@ fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
     let order = tree.user_order();
     let mut covered = 0;
     for _ in 0..count {
-        let q = random_query(rng);
+        let q = random_query(rng, 0.02);
         let a = tree.lookup(&q);
         let b = tree.brute_force(&order, &q);
         assert_eq!(
@@ -131,7 +103,7 @@ fn assert_equal(tree: &SpriteTree, rng: &mut Rng, count: usize) -> usize {
     // consecutive queries share cells (and the descent), crossing cell borders now and then.
     let mut walk = Vec::new();
     for _ in 0..count / 200 {
-        let mut q = random_query(rng);
+        let mut q = random_query(rng, 0.02);
         let step = unit(rng).map(|v| v as f32 * 2e-3);
         for _ in 0..200 {
             q.p = [0, 1, 2].map(|a| q.p[a] + step[a]);
@@ -312,7 +284,7 @@ fn tree_mip_means_equal_brute_force_cell_averages() {
     for k in 0..200 {
         let _ = t.add(random_sprite(&mut rng, None, k));
     }
-    let samples: Vec<Query> = (0..20_000).map(|_| random_query(&mut rng)).collect();
+    let samples: Vec<Query> = (0..20_000).map(|_| random_query(&mut rng, 0.02)).collect();
     let mip = TreeMip::new(&t, &samples);
     let order = t.user_order();
     let e = t.config().n.trailing_zeros();
