@@ -28,6 +28,13 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `fresco sprites render <mesh> <scene> -o <png>` followed by `extra`.
+fn sprites_render(mesh: &Path, scene: &Path, png: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["sprites", "render", s(mesh), s(scene), "-o", s(png)];
+    args.extend_from_slice(extra);
+    fresco(&args)
+}
+
 #[test]
 fn bad_scenes_fail_cleanly_naming_the_sprite() {
     let dir = tempfile::tempdir().unwrap();
@@ -176,19 +183,12 @@ fn frames_render_the_keyed_scene_from_one_updated_tree() {
     let mesh = examples().join("blob.ply");
     let scene = examples().join("gears_keys.json");
     let render = |extra: &[&str], png: &Path| {
-        let mut args = vec![
-            "sprites",
-            "render",
-            s(&mesh),
-            s(&scene),
-            "-o",
-            s(png),
-            "--size",
-            "96x72",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        fresco(&args)
+        sprites_render(
+            &mesh,
+            &scene,
+            png,
+            &[&["--size", "96x72", "--json"], extra].concat(),
+        )
     };
     let anim = dir.path().join("anim.png");
     let out = render(&["--frames", "3", "--fps", "4"], &anim);
@@ -243,19 +243,12 @@ fn distant_render_uses_tree_mip_unless_told_not_to() {
     let mesh = examples().join("blob.ply");
     let scene = examples().join("voronoi.json");
     let render = |extra: &[&str], png: &Path| {
-        let mut args = vec![
-            "sprites",
-            "render",
-            s(&mesh),
-            s(&scene),
-            "-o",
-            s(png),
-            "--size",
-            "96x96",
-            "--distance",
-        ];
-        args.extend_from_slice(extra);
-        fresco(&args)
+        sprites_render(
+            &mesh,
+            &scene,
+            png,
+            &[&["--size", "96x96", "--distance"], extra].concat(),
+        )
     };
     let (mip, plain) = (dir.path().join("mip.png"), dir.path().join("plain.png"));
     for (extra, png) in [(&["4"][..], &mip), (&["4", "--no-tree-mip"][..], &plain)] {
