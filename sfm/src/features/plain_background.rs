@@ -174,22 +174,30 @@ pub fn plain_background(image: &GreyImage, config: &PlainBackgroundConfig) -> Op
 /// True when a background pixel of `mask` (`width` wide) lies within `radius` pixels of the
 /// pixel position (`x`, `y`) (pixel indices, centres at integers).
 pub fn touches_background(mask: &[bool], width: usize, x: f32, y: f32, radius: f32) -> bool {
-    let height = mask.len() / width.max(1);
+    disc_pixels(mask.len(), width, x, y, radius).any(|(xx, yy)| mask[yy * width + xx])
+}
+
+/// The pixels (column, row) of a `width`-wide image of `len` pixels within `radius` of the
+/// position (`x`, `y`) (pixel indices, centres at integers), row by row.
+fn disc_pixels(
+    len: usize,
+    width: usize,
+    x: f32,
+    y: f32,
+    radius: f32,
+) -> impl Iterator<Item = (usize, usize)> {
+    let height = len / width.max(1);
     let r = radius.max(0.0);
     let (x0, x1) = ((x - r).floor().max(0.0) as usize, (x + r).ceil());
     let (y0, y1) = ((y - r).floor().max(0.0) as usize, (y + r).ceil());
     let x1 = (x1.max(0.0) as usize).min(width.saturating_sub(1));
     let y1 = (y1.max(0.0) as usize).min(height.saturating_sub(1));
-    for yy in y0..=y1 {
-        let dy = yy as f32 - y;
-        for xx in x0..=x1 {
-            let dx = xx as f32 - x;
-            if dx * dx + dy * dy <= r * r && mask[yy * width + xx] {
-                return true;
-            }
-        }
-    }
-    false
+    (y0..=y1)
+        .flat_map(move |yy| (x0..=x1).map(move |xx| (xx, yy)))
+        .filter(move |&(xx, yy)| {
+            let (dx, dy) = (xx as f32 - x, yy as f32 - y);
+            dx * dx + dy * dy <= r * r
+        })
 }
 
 /// How sharply the background's boundary bends within `radius` pixels of (`x`, `y`): the
@@ -201,33 +209,24 @@ pub fn touches_background(mask: &[bool], width: usize, x: f32, y: f32, radius: f
 /// in the disc.
 pub fn boundary_bend(mask: &[bool], width: usize, x: f32, y: f32, radius: f32) -> Option<f32> {
     let height = mask.len() / width.max(1);
-    let r = radius.max(0.0);
-    let (x0, x1) = ((x - r).floor().max(0.0) as usize, (x + r).ceil());
-    let (y0, y1) = ((y - r).floor().max(0.0) as usize, (y + r).ceil());
-    let x1 = (x1.max(0.0) as usize).min(width.saturating_sub(1));
-    let y1 = (y1.max(0.0) as usize).min(height.saturating_sub(1));
     let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for yy in y0..=y1 {
-        let dy = yy as f32 - y;
-        for xx in x0..=x1 {
-            let dx = xx as f32 - x;
-            let i = yy * width + xx;
-            if dx * dx + dy * dy > r * r || !mask[i] {
-                continue;
-            }
-            let off = (xx > 0 && !mask[i - 1])
-                || (xx + 1 < width && !mask[i + 1])
-                || (yy > 0 && !mask[i - width])
-                || (yy + 1 < height && !mask[i + width]);
-            if off {
-                let (px, py) = (dx as f64, dy as f64);
-                n += 1.0;
-                sx += px;
-                sy += py;
-                sxx += px * px;
-                sxy += px * py;
-                syy += py * py;
-            }
+    for (xx, yy) in disc_pixels(mask.len(), width, x, y, radius) {
+        let i = yy * width + xx;
+        if !mask[i] {
+            continue;
+        }
+        let off = (xx > 0 && !mask[i - 1])
+            || (xx + 1 < width && !mask[i + 1])
+            || (yy > 0 && !mask[i - width])
+            || (yy + 1 < height && !mask[i + width]);
+        if off {
+            let (px, py) = ((xx as f32 - x) as f64, (yy as f32 - y) as f64);
+            n += 1.0;
+            sx += px;
+            sy += py;
+            sxx += px * px;
+            sxy += px * py;
+            syy += py * py;
         }
     }
     if n < 3.0 {
