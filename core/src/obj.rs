@@ -206,10 +206,7 @@ impl SceneBuilder {
                 let message = format!("vertex {v}: non-finite coordinate");
                 // tobj numbers vertices by first use; the n-th `v` line is the right one
                 // when the file lists vertices in the order faces use them (the usual case).
-                return Err(match nth_statement_line(path, "v", v) {
-                    Some(line) => FormatError::text(path, line, message),
-                    None => FormatError::invalid(path, message),
-                });
+                return Err(statement_error(path, "v", v, message));
             }
             let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());
             let existing = self.by_position.get(&key).copied();
@@ -277,10 +274,7 @@ impl SceneBuilder {
                         && (v as f32).is_finite())
                     {
                         let message = format!("texture coordinate {t}: non-finite component");
-                        return Err(match nth_statement_line(path, "vt", t) {
-                            Some(line) => FormatError::text(path, line, message),
-                            None => FormatError::invalid(path, message),
-                        });
+                        return Err(statement_error(path, "vt", t, message));
                     }
                     // OBJ's v points up; fresco's down.
                     corner[c] = [
@@ -315,10 +309,7 @@ impl SceneBuilder {
                 // here, at their line, rather than hand on a mesh that fails validation.
                 if !normal.iter().all(|c| c.is_finite()) {
                     let message = format!("normal {n}: non-finite component");
-                    return Err(match nth_statement_line(path, "vn", n) {
-                        Some(line) => FormatError::text(path, line, message),
-                        None => FormatError::invalid(path, message),
-                    });
+                    return Err(statement_error(path, "vn", n, message));
                 }
                 let v = map[v as usize] as usize;
                 match self.normal_first[v] {
@@ -362,6 +353,15 @@ impl SceneBuilder {
             self.mesh.normals = Some(normals);
         }
         self.mesh
+    }
+}
+
+/// An error located at the `n`-th (0-based) statement starting with `keyword`, or at the
+/// file when that line cannot be found.
+fn statement_error(path: &Path, keyword: &str, n: usize, message: String) -> FormatError {
+    match nth_statement_line(path, keyword, n) {
+        Some(line) => FormatError::text(path, line, message),
+        None => FormatError::invalid(path, message),
     }
 }
 
