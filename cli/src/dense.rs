@@ -67,7 +67,8 @@ pub struct DenseArgs {
     pub no_geometric: bool,
     /// Keep the plane the object stands on: by default, for object-centric captures
     /// (cameras looking inward at one point from above), the dominant plane under the object
-    /// and everything below it are removed from the fused cloud.
+    /// and everything below it are removed from the fused cloud, when the plane is seen
+    /// around the object (a table or a platform, not the object's own plinth).
     #[arg(long)]
     pub keep_support_plane: bool,
 }

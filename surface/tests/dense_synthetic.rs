@@ -61,7 +61,7 @@ fn assert_must_show(q: &CloudQuality, completeness: f64) {
 
 /// The synthetic temple, 24 views at 640x480.
 #[test]
-#[ignore = "heavy (about 150 CPU-s); misses: p90 0.46%, completeness 89.1% (session 4, lead)"]
+#[ignore = "heavy (about 150 CPU-s); misses: p90 0.45%, completeness 89.2% (session 8)"]
 fn temple_24_views_meets_the_accuracy_and_completeness_goals() {
     let q = densify_and_judge(&SceneConfig {
         shape: Shape::Temple,
@@ -74,7 +74,7 @@ fn temple_24_views_meets_the_accuracy_and_completeness_goals() {
 /// The synthetic temple with its albedo's contrast reduced 10x: still >= 80% complete at the
 /// same accuracy.
 #[test]
-#[ignore = "heavy (about 140 CPU-s); misses: completeness 71.8%, p90 0.61% (session 5)"]
+#[ignore = "heavy (about 190 CPU-s); misses: p90 0.64% (completeness 85.3% meets 80%; session 8)"]
 fn weakly_textured_temple_is_still_mostly_complete() {
     let q = densify_and_judge(&SceneConfig {
         shape: Shape::Temple,
