@@ -10,6 +10,7 @@
 #   bench/fuzz.sh --seconds 60 ply_bytes  # one target for a minute
 #   bench/fuzz.sh --runs 100000           # a quick pass over every target
 #   NO_BUILD=1 bench/fuzz.sh obj           # run the targets as last built
+#   bench/fuzz.sh --nice 0 obj photo       # full priority (default nice 19: the machine is shared)
 #
 # Needs: rustup's nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 # Corpora grow in fuzz/corpus/<target> (git-ignored) from the committed seeds in
@@ -22,13 +23,15 @@ RUNS=10000000
 SECONDS_PER_TARGET=1800
 RSS_MB=512
 TIMEOUT=10
+NICE=19
 targets=()
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --runs) RUNS="$2"; shift 2 ;;
         --seconds) SECONDS_PER_TARGET="$2"; shift 2 ;;
         --rss-mb) RSS_MB="$2"; shift 2 ;;
-        -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+        --nice) NICE="$2"; shift 2 ;;
+        -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
         *) targets+=("$1"); shift ;;
     esac
 done
@@ -45,7 +48,8 @@ fi
 bin_dir=target/x86_64-unknown-linux-gnu/release
 
 mkdir -p ../bench/out/fuzz
-report=../bench/out/fuzz/$(date +%Y-%m-%d_%H%M).md
+# The process id keeps two campaigns started in the same minute apart.
+report=../bench/out/fuzz/$(date +%Y-%m-%d_%H%M)-$$.md
 {
     echo "| target | executions | seconds | exec/s | cov | ft | corpus | crashes | load (1 min) |"
     echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
@@ -62,7 +66,7 @@ for t in "${targets[@]}"; do
     before=$(find "$artifacts" -type f -name '[cot]*-*' | wc -l)
     started=$(date +%s)
     set +e
-    nice -n 19 "$bin_dir/$t" "$corpus" "seeds/$t" "${dict[@]}" \
+    nice -n "$NICE" "$bin_dir/$t" "$corpus" "seeds/$t" "${dict[@]}" \
         -runs="$RUNS" -max_total_time="$SECONDS_PER_TARGET" \
         -rss_limit_mb="$RSS_MB" -malloc_limit_mb="$RSS_MB" -timeout="$TIMEOUT" \
         -print_final_stats=1 -artifact_prefix="$artifacts/" >"$log" 2>&1
