@@ -31,8 +31,10 @@
 //! - Coarse to fine: `levels` template spacings `d 2^(levels-1)` .. `d`. The first level
 //!   starts from input neighbourhoods pasted at random on the output centres (the
 //!   patch-wise version of Kwatra's random initialisation; random single values average
-//!   to a flat field that the matching then keeps); `random_start = false` starts from the
-//!   stretched input instead. Input neighbourhoods are taken inside the region (a
+//!   to a flat field that the matching then keeps), `starts` times from different draws,
+//!   keeping the start of lowest energy (EM reaches a local minimum only; a bad one is a
+//!   dislocated pattern that the finer levels keep); `random_start = false` starts from
+//!   the stretched input instead. Input neighbourhoods are taken inside the region (a
 //!   template nine tenths inside) so that no flat neighbourhood of the fade into the base
 //!   attracts the iterates; the output's border band is held by the constraint.
 
@@ -45,7 +47,7 @@ use fresco_core::nalgebra::{DMatrix, Point3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
 use crate::GeotexError;
-use crate::sparse::{Pattern, SymmetricMatrix};
+use crate::sparse::{Factor, Pattern, SymmetricMatrix};
 
 /// Dimension of the PCA projection the nearest-neighbour search runs in.
 const PCA_DIMENSIONS: usize = 8;
@@ -79,6 +81,9 @@ pub struct SynthesisConfig {
     /// Start from random input displacements (Kwatra); false starts from the stretched
     /// input. Default: `true`.
     pub random_start: bool,
+    /// Random starts of the coarsest level; the one of lowest synthesis energy goes on to
+    /// the finer levels (only with `random_start`). Default: `4`.
+    pub starts: usize,
     /// Seed of the random start, the template shifts and the exemplar subsets (the
     /// resize sets it from `ResizeConfig::seed`). Default: `0`.
     pub seed: u64,
@@ -96,6 +101,7 @@ impl Default for SynthesisConfig {
             constraint_weight: 4.0,
             damping: 0.05,
             random_start: true,
+            starts: 4,
             seed: 0,
         }
     }
@@ -119,6 +125,9 @@ impl SynthesisConfig {
         }
         if self.iterations == 0 {
             return Err(GeotexError::config("synthesis.iterations", 0, "at least 1"));
+        }
+        if self.starts == 0 {
+            return Err(GeotexError::config("synthesis.starts", 0, "at least 1"));
         }
         if self.candidates == 0 {
             return Err(GeotexError::config("synthesis.candidates", 0, "at least 1"));
@@ -616,13 +625,18 @@ pub struct RegionSynthesis {
     pub centres: Vec<usize>,
     /// EM iterations run per level.
     pub iterations: Vec<usize>,
+    /// Energy E_t of each random start of the coarsest level at its end, per template
+    /// sample (empty without random start).
+    pub start_energies: Vec<f64>,
+    /// The start kept for the finer levels: the one of lowest energy.
+    pub start: usize,
     /// Mean squared distance of each output neighbourhood to its match at the end of the
     /// finest level, over the mean squared input displacement (0 is a perfect copy).
     pub relative_energy: f64,
 }
 
-/// The output side of one level: its templates, their neighbours and the factorisable
-/// normal matrix of the least-squares step.
+/// The output side of one level: its templates, their neighbours and the weights of the
+/// least-squares step (whose normal matrix [`output_level`] returns beside).
 struct OutputLevel {
     centres: Vec<u32>,
     templates: Vec<Vec<Sample>>,
@@ -631,7 +645,6 @@ struct OutputLevel {
     centre_points: Vec<Point3<f64>>,
     /// Neighbouring centres of each centre.
     neighbours: Vec<Vec<u32>>,
-    matrix: SymmetricMatrix,
     /// Weights of the constraint and of the damping (module docs).
     mu: f64,
     eps: f64,
@@ -648,7 +661,7 @@ fn output_level(
     s: f64,
     level: usize,
     cfg: &SynthesisConfig,
-) -> Result<OutputLevel, GeotexError> {
+) -> Result<(OutputLevel, SymmetricMatrix), GeotexError> {
     let nu = target.members.len();
     let centres = spread(
         target.surface.positions,
@@ -741,16 +754,199 @@ fn output_level(
     for (k, c) in constraint.iter().enumerate() {
         matrix.add(k, k, mu * c + eps);
     }
-    Ok(OutputLevel {
-        centres,
-        templates,
-        out_origins,
-        centre_points,
-        neighbours,
+    Ok((
+        OutputLevel {
+            centres,
+            templates,
+            out_origins,
+            centre_points,
+            neighbours,
+            mu,
+            eps,
+        },
         matrix,
-        mu,
-        eps,
-    })
+    ))
+}
+
+/// One level's texture optimisation (eq. 8 with the constraint of eq. 6): its input and
+/// output neighbourhoods and weights; the iterate `x` is passed in.
+struct LevelProblem<'a> {
+    target: &'a Output<'a>,
+    ex: &'a Exemplars,
+    centres: &'a [u32],
+    templates: &'a [Vec<Sample>],
+    out_origins: &'a [(Point3<f64>, Vector3<f64>, Vector3<f64>)],
+    centre_points: &'a [Point3<f64>],
+    neighbours: &'a [Vec<u32>],
+    unknown: &'a [u32],
+    constraint: &'a [f64],
+    mu: f64,
+    eps: f64,
+    dim: usize,
+    cfg: &'a SynthesisConfig,
+}
+
+/// One random start of the coarsest level run to its end: the iterate, its energy E_t and
+/// the iterations run.
+struct StartRun {
+    x: Vec<f64>,
+    energy: f64,
+    iterations: usize,
+}
+
+/// The seed of the coarsest level's random start number `start` (start 0 uses the
+/// synthesis seed itself).
+fn start_seed(seed: u64, start: u64) -> u64 {
+    seed.wrapping_add(start.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+}
+
+impl LevelProblem<'_> {
+    /// Kwatra's random initialisation, patch-wise: a random input neighbourhood per
+    /// output centre (distance infinite: not a match the energy counts).
+    fn random_matching(&self, seed: u64) -> Vec<(u32, f64)> {
+        let count = self.ex.values.len() / self.dim;
+        self.centres
+            .iter()
+            .map(|&c| {
+                (
+                    Rng::for_item(seed, c as u64).below(count) as u32,
+                    f64::INFINITY,
+                )
+            })
+            .collect()
+    }
+
+    /// Matching step: the nearest input neighbourhood of every output neighbourhood of
+    /// `x`, with the coherent candidates that the neighbours' `matches` suggest.
+    fn matching(&self, x: &[f64], matches: &[u32]) -> Vec<(u32, f64)> {
+        let (ex, surface) = (self.ex, self.target.surface);
+        (0..self.templates.len())
+            .into_par_iter()
+            .map_init(
+                || (vec![0f32; self.dim], Vec::new()),
+                |(buf, coherent), k| {
+                    template_values(surface, &self.templates[k], x, buf);
+                    coherent.clear();
+                    for &q in &self.neighbours[k] {
+                        let e = matches[q as usize];
+                        if e == u32::MAX {
+                            continue;
+                        }
+                        let offset = self.centre_points[k] - self.centre_points[q as usize];
+                        let (_, a, b) = self.out_origins[q as usize];
+                        let (origin, ta, tb) = ex.origins[e as usize];
+                        let place = origin + ta * offset.dot(&a) + tb * offset.dot(&b);
+                        if let Some(n) = ex.places.nearest(&place) {
+                            coherent.push(n.index);
+                        }
+                    }
+                    ex.best(buf, self.cfg.candidates, coherent)
+                },
+            )
+            .collect()
+    }
+
+    /// Least-squares step: minimises eq. 8 plus the constraint and damping for `x` given
+    /// the matches. The right-hand side `Σ_p W_pᵀ z_p` is accumulated over a fixed split
+    /// of the templates (one partial sum per chunk, added in chunk order: the same bits
+    /// whatever the thread count).
+    fn least_squares(
+        &self,
+        x: &mut [f64],
+        matches: &[u32],
+        factor: &Factor,
+    ) -> Result<(), GeotexError> {
+        let (faces, unknown) = (self.target.surface.faces, self.unknown);
+        let nu = self.target.members.len();
+        let chunk = self.templates.len().div_ceil(RHS_CHUNKS).max(1);
+        let partial: Vec<Vec<f64>> = self
+            .templates
+            .par_chunks(chunk)
+            .zip(matches.par_chunks(chunk))
+            .map(|(ts, es)| {
+                let mut rhs = vec![0.0; nu];
+                for (t, &e) in ts.iter().zip(es) {
+                    let z = self.ex.row(e as usize);
+                    for (smp, &zk) in t.iter().zip(z) {
+                        if smp.face == u32::MAX {
+                            continue;
+                        }
+                        let face = faces[smp.face as usize];
+                        let w = smp.weights();
+                        let mut target_value = zk as f64;
+                        for c in 0..3 {
+                            if unknown[face[c] as usize] == u32::MAX {
+                                target_value -= w[c] * x[face[c] as usize];
+                            }
+                        }
+                        for c in 0..3 {
+                            let k = unknown[face[c] as usize];
+                            if k != u32::MAX {
+                                rhs[k as usize] += w[c] * target_value;
+                            }
+                        }
+                    }
+                }
+                rhs
+            })
+            .collect();
+        let mut rhs = vec![0.0; nu];
+        for p in &partial {
+            for (r, v) in rhs.iter_mut().zip(p) {
+                *r += v;
+            }
+        }
+        drop(partial);
+        for (k, &v) in self.target.members.iter().enumerate() {
+            rhs[k] += self.mu * self.constraint[k] * self.target.carried[v as usize]
+                + self.eps * x[v as usize];
+        }
+        factor.solve(&mut rhs, 1)?;
+        for (k, &v) in self.target.members.iter().enumerate() {
+            x[v as usize] = rhs[k];
+        }
+        Ok(())
+    }
+
+    /// The EM iterations of the level from the first matching `found` (random when
+    /// `random_first`, whose distances the energy does not count): at most
+    /// `cfg.iterations`, stopping early when fewer than 0.5% of the matches change.
+    /// Returns the energy E_t of the last matching per template sample (infinite when
+    /// only the random one ran) and the iterations run.
+    fn optimise(
+        &self,
+        x: &mut [f64],
+        factor: &Factor,
+        mut found: Vec<(u32, f64)>,
+        random_first: bool,
+        progress: &dyn Fn(usize),
+    ) -> Result<(f64, usize), GeotexError> {
+        let mut matches = vec![u32::MAX; self.templates.len()];
+        let mut energy = f64::INFINITY;
+        let mut iterations = 0;
+        loop {
+            iterations += 1;
+            let changed = found
+                .iter()
+                .zip(&matches)
+                .filter(|(f, m)| f.0 != **m)
+                .count();
+            if !(random_first && iterations == 1) {
+                energy =
+                    found.iter().map(|f| f.1).sum::<f64>() / (found.len().max(1) * self.dim) as f64;
+            }
+            for (m, f) in matches.iter_mut().zip(&found) {
+                *m = f.0;
+            }
+            self.least_squares(x, &matches, factor)?;
+            progress(1);
+            if changed * 200 < self.templates.len() || iterations >= self.cfg.iterations {
+                break;
+            }
+            found = self.matching(x, &matches);
+        }
+        Ok((energy, iterations))
+    }
 }
 
 /// Input neighbourhoods of one level: values, PCA projection and index.
@@ -1101,7 +1297,6 @@ pub(crate) fn synthesise_region(
     for (k, &v) in target.members.iter().enumerate() {
         unknown[v as usize] = k as u32;
     }
-    let nu = target.members.len();
     let border = border_distance(target.surface, &target.members, &is_member);
     let band = cfg.boundary_band * d;
     let constraint: Vec<f64> = target
@@ -1158,141 +1353,85 @@ pub(crate) fn synthesise_region(
             report.iterations.push(0);
             continue;
         };
-        let OutputLevel {
-            centres,
-            templates,
-            out_origins,
-            centre_points,
-            neighbours,
+        let (
+            OutputLevel {
+                centres,
+                templates,
+                out_origins,
+                centre_points,
+                neighbours,
+                mu,
+                eps,
+            },
             matrix,
-            mu,
-            eps,
-        } = output?;
+        ) = output?;
         report.exemplars.push(ex.values.len() / dim);
         report.centres.push(centres.len());
-        let faces = target.surface.faces;
-
-        let mut matches: Vec<u32> = vec![u32::MAX; templates.len()];
-        let mut iterations = 0;
-        let mut matrix = Some(matrix);
-        let mut factor = None;
-        for _ in 0..cfg.iterations {
-            iterations += 1;
-            // Matching step: nearest input neighbourhood of every output neighbourhood; the
-            // very first one (random start) a random input neighbourhood per centre, so
-            // that the first least-squares step pastes real texture patches at random.
-            let random = cfg.random_start && level == 0 && iterations == 1;
-            let count = ex.values.len() / dim;
-            let matching = || -> Vec<(u32, f64)> {
-                (0..templates.len())
-                    .into_par_iter()
-                    .map_init(
-                        || (vec![0f32; dim], Vec::new()),
-                        |(buf, coherent), k| {
-                            if random {
-                                let pick = Rng::for_item(cfg.seed, centres[k] as u64).below(count);
-                                return (pick as u32, f64::INFINITY);
-                            }
-                            template_values(target.surface, &templates[k], &x, buf);
-                            coherent.clear();
-                            for &q in &neighbours[k] {
-                                let e = matches[q as usize];
-                                if e == u32::MAX {
-                                    continue;
-                                }
-                                let offset = centre_points[k] - centre_points[q as usize];
-                                let (_, a, b) = out_origins[q as usize];
-                                let (origin, ta, tb) = ex.origins[e as usize];
-                                let place = origin + ta * offset.dot(&a) + tb * offset.dot(&b);
-                                if let Some(n) = ex.places.nearest(&place) {
-                                    coherent.push(n.index);
-                                }
-                            }
-                            ex.best(buf, cfg.candidates, coherent)
-                        },
-                    )
-                    .collect()
-            };
-            // The level's first matching does not need the factorisation: both run side
-            // by side.
-            let found = match matrix.take() {
-                Some(mx) => {
-                    let (f, found) = rayon::join(
-                        || mx.factor_reusing("texture synthesis", &mut pattern),
-                        matching,
-                    );
-                    factor = Some(f?);
-                    found
-                }
-                None => matching(),
-            };
-            let changed = found
-                .iter()
-                .zip(&matches)
-                .filter(|(f, m)| f.0 != **m)
-                .count();
-            if !random {
-                final_energy =
-                    found.iter().map(|f| f.1).sum::<f64>() / (found.len().max(1) * dim) as f64;
-            }
-            for (m, f) in matches.iter_mut().zip(&found) {
-                *m = f.0;
-            }
-            // Least-squares step: Σ_p W_pᵀ z_p, accumulated over a fixed split of the
-            // templates (one partial sum per chunk, added in chunk order: the same bits
-            // whatever the thread count).
-            let chunk = templates.len().div_ceil(RHS_CHUNKS).max(1);
-            let partial: Vec<Vec<f64>> = templates
-                .par_chunks(chunk)
-                .zip(matches.par_chunks(chunk))
-                .map(|(ts, es)| {
-                    let mut rhs = vec![0.0; nu];
-                    for (t, &e) in ts.iter().zip(es) {
-                        let z = ex.row(e as usize);
-                        for (smp, &zk) in t.iter().zip(z) {
-                            if smp.face == u32::MAX {
-                                continue;
-                            }
-                            let face = faces[smp.face as usize];
-                            let w = smp.weights();
-                            let mut target_value = zk as f64;
-                            for c in 0..3 {
-                                if unknown[face[c] as usize] == u32::MAX {
-                                    target_value -= w[c] * x[face[c] as usize];
-                                }
-                            }
-                            for c in 0..3 {
-                                let k = unknown[face[c] as usize];
-                                if k != u32::MAX {
-                                    rhs[k as usize] += w[c] * target_value;
-                                }
-                            }
-                        }
-                    }
-                    rhs
+        let problem = LevelProblem {
+            target,
+            ex: &ex,
+            centres: &centres,
+            templates: &templates,
+            out_origins: &out_origins,
+            centre_points: &centre_points,
+            neighbours: &neighbours,
+            unknown: &unknown,
+            constraint: &constraint,
+            mu,
+            eps,
+            dim,
+            cfg,
+        };
+        let (energy, iterations) = if cfg.random_start && level == 0 {
+            // Kwatra's optimisation is EM-like and only reaches a local minimum of eq. 8;
+            // from a random start it can settle on a dislocated pattern (a thread with
+            // breaks, bumps merged or cut), which the finer levels, matching at smaller
+            // scales, keep. The coarsest level is cheap (its templates lie 4 times as far
+            // apart as the finest level's: 504 centres against 6,851 on the 25k-vertex
+            // cylinder), so it runs from several random starts and the one of lowest energy
+            // E_t goes on.
+            let factor = matrix.factor_reusing("texture synthesis", &mut pattern)?;
+            let runs: Vec<Result<StartRun, GeotexError>> = (0..cfg.starts as u64)
+                .into_par_iter()
+                .map(|start| {
+                    let mut x = x.clone();
+                    let first = problem.random_matching(start_seed(cfg.seed, start));
+                    let (energy, iterations) =
+                        problem.optimise(&mut x, &factor, first, true, &|_| {})?;
+                    Ok(StartRun {
+                        x,
+                        energy,
+                        iterations,
+                    })
                 })
                 .collect();
-            let mut rhs = vec![0.0; nu];
-            for p in &partial {
-                for (r, v) in rhs.iter_mut().zip(p) {
-                    *r += v;
+            // Lowest energy, ties to the earlier start (the same choice on any thread
+            // count).
+            let mut best: Option<StartRun> = None;
+            for (start, run) in runs.into_iter().enumerate() {
+                let run = run?;
+                report.start_energies.push(run.energy);
+                if best.as_ref().is_none_or(|b| run.energy < b.energy) {
+                    report.start = start;
+                    best = Some(run);
                 }
             }
-            drop(partial);
-            for (k, &v) in target.members.iter().enumerate() {
-                rhs[k] += mu * constraint[k] * target.carried[v as usize] + eps * x[v as usize];
-            }
-            factor
-                .as_ref()
-                .expect("factored beside the first matching")
-                .solve(&mut rhs, 1)?;
-            for (k, &v) in target.members.iter().enumerate() {
-                x[v as usize] = rhs[k];
-            }
-            progress(1);
-            if changed * 200 < templates.len() {
-                break;
-            }
+            let best = best.expect("at least one start");
+            x = best.x;
+            progress(best.iterations);
+            (best.energy, best.iterations)
+        } else {
+            // The level's first matching does not need the factorisation: both run side
+            // by side.
+            let no_matches = vec![u32::MAX; templates.len()];
+            let (factor, first) = rayon::join(
+                || matrix.factor_reusing("texture synthesis", &mut pattern),
+                || problem.matching(&x, &no_matches),
+            );
+            problem.optimise(&mut x, &factor?, first, false, progress)?
+        };
+        if energy.is_finite() {
+            final_energy = energy;
         }
         report.iterations.push(iterations);
     }
