@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Fuzzing campaign over fresco's file readers (issue 19): builds the cargo-fuzz targets of
-# fuzz/ with the nightly toolchain, then runs them one after the other (never two at once:
-# the machine is shared), each until it has executed RUNS inputs or spent SECONDS, whichever
+# fuzz/ with the nightly toolchain, then runs them one after the other (one core per
+# campaign; start a second campaign on other targets to use both), each until it has
+# executed RUNS inputs or spent SECONDS, whichever
 # comes first, under libFuzzer's 512 MB RSS limit and a 10 s per-input timeout. Prints one
 # row per target: executions, time, executions per second, final coverage (edges and
 # features), corpus size, crashes (crash/oom/timeout artifacts) and the machine load.
