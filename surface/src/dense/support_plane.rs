@@ -157,6 +157,18 @@ fn camera_up(cameras: &[CameraRay], mean_dir: &Vector3<f64>) -> Option<Vector3<f
     up.try_normalize(1e-12)
 }
 
+/// Two unit vectors that complete the unit `normal` to an orthonormal frame: coordinates in
+/// the plane.
+fn plane_basis(normal: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = normal.cross(&helper).normalize();
+    (e1, normal.cross(&e1))
+}
+
 /// Finds the support plane of `points` (with unit `normals` facing their cameras) under
 /// `cameras`; see the module documentation. `None` when the capture is not object-centric
 /// or no plane qualifies.
@@ -189,14 +201,7 @@ pub fn find_support_plane(
         // Far strays would only widen the histograms.
         .filter(|p| (p - aim.coords).norm() <= 5.0 * distance)
         .collect();
-    let e1 = up
-        .cross(&if up.x.abs() < 0.9 {
-            Vector3::x()
-        } else {
-            Vector3::y()
-        })
-        .normalize();
-    let e2 = up.cross(&e1);
+    let (e1, e2) = plane_basis(&up);
     let peak = |n: &Vector3<f64>| -> (usize, f64) {
         let heights: Vec<f64> = sample.iter().map(|p| p.dot(n) / min_tol).collect();
         let lo = heights
@@ -304,14 +309,7 @@ impl SupportPlane {
     /// hide it), grown by its 8 neighbours.
     fn outside_footprint(&self, points: &[Point3<f64>], cell: f64) -> f64 {
         let up = Vector3::from(self.normal);
-        let e1 = up
-            .cross(&if up.x.abs() < 0.9 {
-                Vector3::x()
-            } else {
-                Vector3::y()
-            })
-            .normalize();
-        let e2 = up.cross(&e1);
+        let (e1, e2) = plane_basis(&up);
         let cell_of = |p: &Point3<f64>| {
             (
                 (p.coords.dot(&e1) / cell).floor() as i64,
