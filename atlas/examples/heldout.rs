@@ -88,7 +88,7 @@ fn main() {
     let images = ImageSource::Folder(images_dir.clone());
     let config = TextureConfig {
         exclude_images: held.clone(),
-        texels_per_pixel: var("TPP").unwrap_or(1.0),
+        texels_per_pixel: var("TPP").unwrap_or(TextureConfig::default().texels_per_pixel),
         quality_weight: var("QW").unwrap_or(TextureConfig::default().quality_weight),
         outlier_rejection: var("NOOUT").is_none(),
         outlier_sigmas: var("OUTSIG").unwrap_or(TextureConfig::default().outlier_sigmas),

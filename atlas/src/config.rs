@@ -17,7 +17,10 @@ pub struct TextureConfig {
     /// Default 4.
     pub gutter: u32,
     /// Texel density relative to the best photo that sees the surface: texels per photo
-    /// pixel along a side. Default 1.0.
+    /// pixel along a side. Default 1.5: a viewer's bilinear lookup of texels at the photos'
+    /// own resolution blurs what they resolve, which sharpening undoes only in part
+    /// (`playback_sharpening`); half again as many texels per side gain 0.3-0.8 dB held out
+    /// on the synthetic scenes for 2.25x the texels (`bench/RESULTS.md` issue 14, session 9).
     pub texels_per_pixel: f64,
     /// Texels per world unit, overriding the density chosen from the photos. Default none.
     pub texels_per_unit: Option<f64>,
@@ -44,7 +47,8 @@ pub struct TextureConfig {
     /// Texels of misregistration the outlier test tolerates: a view's colour is compared
     /// with the range (per-channel minimum to maximum) the other views show within this many
     /// texels, so that an edge of the photos' content displaced by a slightly wrong surface
-    /// does not count as disagreement (0: compare colours at the texel only). Default 2.
+    /// does not count as disagreement (0: compare colours at the texel only). Texels at one
+    /// texel per photo pixel, scaled by `texels_per_pixel` above 1. Default 2.
     pub outlier_window: u32,
     /// A view that disagrees with the consensus still counts as consistent when it agrees
     /// with another view seeing the face from within this angle, degrees: a wrong surface
@@ -92,7 +96,8 @@ pub struct TextureConfig {
     /// fixed tolerance). Default 2.
     pub blend_sigmas: f64,
     /// A view's weight ramps up over this many texels from the edge of the region where it
-    /// is valid. Default 4.
+    /// is valid (at one texel per photo pixel, scaled by `texels_per_pixel` above 1).
+    /// Default 4.
     pub blend_fade_texels: f64,
     /// Level the colours across chart boundaries after fusion (`leveling.rs`: per chart and
     /// vertex offsets by least squares), before the seam strip. Default false: without the
@@ -123,16 +128,16 @@ pub struct TextureConfig {
     /// 33.66 dB, the same at 30; real temple: PSNR unchanged, seam discrepancy 9.73 ->
     /// 10.26, MeshLab param 13.92).
     pub seam_strip_crease_deg: f64,
-    /// Strength `a` of the sharpening `(1 + 4a) c - a (4 neighbours)` applied to the
-    /// finished atlas' photo texels to undo the blur of a viewer's bilinear lookup, when the
-    /// views agree exactly; scaled by `1 - d^2` for a mean squared misregistration of `d^2`
-    /// texels^2 between the views (none from one texel on: detail the views do not agree on
-    /// is not amplified). 0 turns it off. Default 1/6: the second-order inverse of the
-    /// Gram matrix `[1/6, 2/3, 1/6]` of linear interpolation, which makes the bilinear
-    /// playback of the texels a least-squares fit of the surface's colour. (Synthetic blob /
-    /// temple / torus at 640x480, views 5 / 17 held out, gain-fitted:
-    /// 37.43 -> 39.3, 32.35 -> 33.1, 37.16 -> 38.3 dB; real temple unchanged, its views are
-    /// 1.3 texels apart: `bench/RESULTS.md` issue 14, session 6.)
+    /// How much of the playback blur the finished atlas' photo texels are sharpened against,
+    /// 1 = all of it, 0 = off. Default 1. The blur: a viewer's bilinear lookup and the photo
+    /// pixel each texel was read from; the strength `a` of the sharpening
+    /// `(1 + 4a) c - a (4 neighbours)` that undoes it is `1/6 + t^2 / 16` for `t` texels per
+    /// photo pixel, faded by the views' mean squared misregistration measured in pixels
+    /// (none from one pixel on: detail the views do not agree on is not amplified;
+    /// `texture.rs`, `sharpening_strength`). Synthetic torus / temple / blob at 640x480, views
+    /// 5 / 17 held out, gain-fitted: 37.16 / 32.35 / 37.43 dB unsharpened; 38.67 / 33.56 /
+    /// 39.25 with the session-6 fixed `a = 1/6`; session 9's rule and 1.5 texels per pixel in
+    /// `bench/RESULTS.md` issue 14. The real temple gets none: its views are 1.1 pixels^2 apart.
     pub playback_sharpening: f64,
     /// Images (by name) kept out of the texture, e.g. held out for evaluation. Default empty.
     pub exclude_images: Vec<String>,
@@ -146,7 +151,7 @@ impl Default for TextureConfig {
             max_atlas_size: 8192,
             max_atlases: 1,
             gutter: 4,
-            texels_per_pixel: 1.0,
+            texels_per_pixel: 1.5,
             texels_per_unit: None,
             max_view_angle_deg: 80.0,
             depth_tolerance: 0.005,
@@ -171,7 +176,7 @@ impl Default for TextureConfig {
             seam_leveling_smoothness: 0.1,
             seam_strip_texels: 0.0,
             seam_detail_passes: 2,
-            playback_sharpening: 1.0 / 6.0,
+            playback_sharpening: 1.0,
             seam_strip_crease_deg: 60.0,
             exclude_images: Vec::new(),
             write_obj: false,
@@ -354,7 +359,7 @@ mod tests {
         assert_eq!(c.max_atlas_size, 8192);
         assert_eq!(c.max_atlases, 1);
         assert_eq!(c.gutter, 4);
-        assert_eq!(c.texels_per_pixel, 1.0);
+        assert_eq!(c.texels_per_pixel, 1.5);
         assert_eq!(c.max_view_angle_deg, 80.0);
         assert!(c.exposure_gains && c.outlier_rejection);
         assert!(c.bicubic);
@@ -372,7 +377,7 @@ mod tests {
         assert_eq!(c.seam_leveling_smoothness, 0.1);
         assert_eq!(c.seam_strip_texels, 0.0);
         assert_eq!(c.seam_detail_passes, 2);
-        assert_eq!(c.playback_sharpening, 1.0 / 6.0);
+        assert_eq!(c.playback_sharpening, 1.0);
         assert_eq!(c.seam_strip_crease_deg, 60.0);
         assert!(c.exclude_images.is_empty());
         c.check().unwrap();

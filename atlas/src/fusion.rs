@@ -26,6 +26,8 @@
 //!   lines, a highlight or occluder is a patch).
 //!
 //! What remains is dilated by three texels so that the fringe of a highlight goes with it.
+//! (These texel counts hold at one texel per photo pixel and grow with `texels_per_pixel`:
+//! [`texels_per_tuned_texel`].)
 //!
 //! After the cuts, each texel is blended from several views (on by default; fresco's
 //! addition, after the per-texel averaging of MeshLab and of the per-vertex baseline, which
@@ -258,7 +260,7 @@ fn blend_agreeing_views(
     if nk < 2 {
         return;
     }
-    let radius = config.blend_fade_texels.max(1.0) as f32;
+    let radius = (config.blend_fade_texels * texels_per_tuned_texel(config)).max(1.0) as f32;
     let fade: Vec<Vec<f32>> = texels
         .iter()
         .map(|t| boundary_distance(grid, &t.valid, radius))
@@ -380,7 +382,10 @@ fn reject_outliers(
     if nk < 3 {
         return 0;
     }
-    let r = config.outlier_window as usize;
+    let scale = texels_per_tuned_texel(config);
+    let r = scaled(config.outlier_window as usize, scale);
+    let patch_radius = scaled(PATCH_RADIUS, scale);
+    let dilation = scaled(OUTLIER_DILATION, scale);
     let cos_near = (config.outlier_neighbour_deg > 0.0)
         .then(|| config.outlier_neighbour_deg.to_radians().cos() as f32);
     let mut reject = vec![false; n * nk];
@@ -485,8 +490,8 @@ fn reject_outliers(
                 }
                 let (x, y) = (i % grid.width, i / grid.width);
                 let (mut rejected, mut valid) = (0u32, 0u32);
-                for yy in y.saturating_sub(PATCH_RADIUS)..(y + PATCH_RADIUS + 1).min(grid.height) {
-                    for xx in x.saturating_sub(PATCH_RADIUS)..(x + PATCH_RADIUS + 1).min(grid.width)
+                for yy in y.saturating_sub(patch_radius)..(y + patch_radius + 1).min(grid.height) {
+                    for xx in x.saturating_sub(patch_radius)..(x + patch_radius + 1).min(grid.width)
                     {
                         let j = yy * grid.width + xx;
                         if t.valid[j] {
@@ -506,10 +511,10 @@ fn reject_outliers(
                     continue;
                 }
                 let (x, y) = (i % grid.width, i / grid.width);
-                near_core[i * nk + k] = (y.saturating_sub(PATCH_RADIUS)
-                    ..(y + PATCH_RADIUS + 1).min(grid.height))
+                near_core[i * nk + k] = (y.saturating_sub(patch_radius)
+                    ..(y + patch_radius + 1).min(grid.height))
                     .any(|yy| {
-                        (x.saturating_sub(PATCH_RADIUS)..(x + PATCH_RADIUS + 1).min(grid.width))
+                        (x.saturating_sub(patch_radius)..(x + patch_radius + 1).min(grid.width))
                             .any(|xx| kept[(yy * grid.width + xx) * nk + k])
                     });
             }
@@ -524,7 +529,7 @@ fn reject_outliers(
                 if !t.valid[i] {
                     continue;
                 }
-                let r = OUTLIER_DILATION;
+                let r = dilation;
                 let hit = (y.saturating_sub(r)..(y + r + 1).min(grid.height)).any(|yy| {
                     (x.saturating_sub(r)..(x + r + 1).min(grid.width))
                         .any(|xx| reject[(yy * grid.width + xx) * nk + k])
@@ -539,15 +544,28 @@ fn reject_outliers(
     count
 }
 
+/// Texels per texel of the density at which the texel counts here (windows, radii, the
+/// dilation) were set: one texel per photo pixel. They measure things in the photos (a
+/// misregistration, a lookup kernel's reach, the fringe of a highlight), so at
+/// `texels_per_pixel` > 1 they cover as many texels more; below 1 they stay as they are.
+fn texels_per_tuned_texel(config: &TextureConfig) -> f64 {
+    config.texels_per_pixel.max(1.0)
+}
+
+/// `texels` at the tuned density, at `scale` times it (rounded).
+fn scaled(texels: usize, scale: f64) -> usize {
+    (texels as f64 * scale).round() as usize
+}
+
 /// Radius of the window over which a rejection must be a patch
-/// ([`TextureConfig::outlier_patch_fraction`]), texels.
+/// ([`TextureConfig::outlier_patch_fraction`]), texels at one texel per photo pixel.
 const PATCH_RADIUS: usize = 2;
 
 fn max_channel_difference(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max)
 }
 
-/// Texels by which a rejection spreads: the photo's lookup (a 4x4 bicubic kernel at a mip
+/// Texels (at one texel per photo pixel) by which a rejection spreads: the photo's lookup (a 4x4 bicubic kernel at a mip
 /// level up to a texel's footprint) carries an outlier's colour about this far. Two sufficed
 /// for the 2x2 bilinear lookup; with the bicubic one a painted highlight's fringe passed
 /// (99th percentile of the brightening 25/255 inside the disc at 2, test below).

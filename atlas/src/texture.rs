@@ -16,8 +16,9 @@
 //!    Seam edges across a sharp crease (`seam_strip_crease_deg`) keep their step.
 //! 7. Assembly into the atlases and push-pull filling of holes and gutters (`fill.rs`),
 //!    then the playback sharpening ([`sharpen_for_bilinear`]): a viewer's bilinear lookup
-//!    blurs the texels, which the sharpening undoes where the views agree to within a texel
-//!    (its strength scaled by the views' misregistration measured in fusion).
+//!    and the photos' pixels blur the texels, which the sharpening undoes where the views
+//!    agree to within a pixel (its strength from the texel density and the views'
+//!    misregistration measured in fusion, [`sharpening_strength`]).
 //!
 //! [`texture_mesh`] writes the result into a folder (layout in the crate documentation).
 
@@ -99,8 +100,10 @@ pub struct TextureSummary {
     /// Mean squared displacement between the views' content and the fused texture, texels^2
     /// (`fusion.rs`, `misregistration`).
     pub misregistration_texels2: f64,
+    /// Texels per pixel of the best photo, along a side, of the atlas made.
+    pub texels_per_photo_pixel: f64,
     /// Strength of the playback sharpening applied (`TextureConfig::playback_sharpening`
-    /// scaled by `1 - misregistration_texels2`, at least 0).
+    /// times `sharpening_strength` of the density and the misregistration).
     pub sharpening: f64,
     pub gains: Vec<ViewGain>,
     pub seconds: Timings,
@@ -149,9 +152,10 @@ pub fn texture(
     summary.seconds.views = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
+    let photo_density = choose_density(mesh_in, &set);
     let target = config
         .texels_per_unit
-        .unwrap_or_else(|| choose_density(mesh_in, &set) * config.texels_per_pixel);
+        .unwrap_or(photo_density * config.texels_per_pixel);
     summary.target_texels_per_unit = target;
     let mut mesh = mesh_in.clone();
     // The texture replaces any vertex colours (viewers would multiply the two).
@@ -205,8 +209,12 @@ pub fn texture(
     });
     summary.misregistration_texels2 =
         crate::fusion::Misregistration { residual, gradient }.squared_texels();
-    summary.sharpening =
-        config.playback_sharpening * (1.0 - summary.misregistration_texels2).max(0.0);
+    summary.texels_per_photo_pixel = tpu / photo_density;
+    summary.sharpening = config.playback_sharpening
+        * sharpening_strength(
+            summary.texels_per_photo_pixel,
+            summary.misregistration_texels2,
+        );
     summary.seconds.fusion = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -287,7 +295,8 @@ pub fn texture(
     for a in 0..atlases as u32 {
         let (mut colour, mask) = assemble(&fused, a, s);
         if summary.sharpening > 0.0 {
-            sharpen_for_bilinear(&mut colour, &mask, s, summary.sharpening as f32);
+            let photo = photo_texels(&fused, a, s);
+            sharpen_for_bilinear(&mut colour, &photo, s, summary.sharpening as f32);
         }
         interior += mask.iter().filter(|&&m| m != 0).count();
         covered += mask.iter().filter(|&&m| m == 255).count();
@@ -405,11 +414,30 @@ fn assemble(fused: &[ChartOutput], a: u32, s: usize) -> (Vec<[f32; 3]>, Vec<u8>)
     (colour, mask)
 }
 
-/// Compensates the blur of a viewer's bilinear lookup (`TextureConfig::playback_sharpening`):
+/// Which texels of atlas `a` (`s` x `s`) hold a colour read from a photo: the charts' seen
+/// texels and their extrapolated border ring where a photo saw it (`transfer.rs`), which a
+/// bilinear lookup at a chart's edge reads as well.
+fn photo_texels(fused: &[ChartOutput], a: u32, s: usize) -> Vec<bool> {
+    let mut photo = vec![false; s * s];
+    for c in fused.iter().filter(|c| c.atlas == a) {
+        for y in 0..c.height {
+            for x in 0..c.width {
+                let state = c.state[y * c.width + x];
+                if state == STATE_PHOTO || state == STATE_BORDER_PHOTO {
+                    photo[(c.y0 + y) * s + c.x0 + x] = true;
+                }
+            }
+        }
+    }
+    photo
+}
+
+/// Compensates the blur of a viewer's bilinear lookup and of the photos' pixels
+/// (`TextureConfig::playback_sharpening`, strength from [`sharpening_strength`]):
 /// `(1 + 4a) c - a (sum of the 4 neighbours)`, clamped to [0, 1], on the photo texels whose
-/// four neighbours are photo texels too (`mask` 255): a chart's edge, its filled holes and
-/// the gutters stay as they are, so no seam step is amplified.
-fn sharpen_for_bilinear(colour: &mut [[f32; 3]], mask: &[u8], s: usize, a: f32) {
+/// four neighbours are photo texels too (`photo`, the border ring included): filled holes
+/// and the gutters stay as they are, and so does the outer border ring.
+fn sharpen_for_bilinear(colour: &mut [[f32; 3]], photo: &[bool], s: usize, a: f32) {
     let src = colour.to_vec();
     colour.par_chunks_mut(s).enumerate().for_each(|(y, row)| {
         if y == 0 || y + 1 == s {
@@ -418,7 +446,7 @@ fn sharpen_for_bilinear(colour: &mut [[f32; 3]], mask: &[u8], s: usize, a: f32) 
         for (x, out) in row.iter_mut().enumerate().take(s - 1).skip(1) {
             let k = y * s + x;
             let nb = [k - 1, k + 1, k - s, k + s];
-            if mask[k] != 255 || nb.iter().any(|&j| mask[j] != 255) {
+            if !photo[k] || nb.iter().any(|&j| !photo[j]) {
                 continue;
             }
             *out = [0, 1, 2].map(|c| {
@@ -427,6 +455,25 @@ fn sharpen_for_bilinear(colour: &mut [[f32; 3]], mask: &[u8], s: usize, a: f32) 
             });
         }
     });
+}
+
+/// The strength `a` of [`sharpen_for_bilinear`] that undoes the blur between a surface's
+/// colour and its playback, for texels `t` per photo pixel (along a side) and views whose
+/// content lies `d2` texels^2 apart (mean squared misregistration, `fusion.rs`).
+///
+/// The blur: the viewer's bilinear lookup (its least-squares inverse is the second-order
+/// inverse of linear interpolation's Gram matrix `[1/6, 2/3, 1/6]`: `a = 1/6`), plus the
+/// photo pixel each texel was read from, a box `t` texels wide (variance `t^2 / 12`, so
+/// `a = t^2 / 24` for it alone; the bicubic read adds a little: `t^2 / 16` measured best on
+/// the synthetic torus, temple and blob, `bench/RESULTS.md` issue 14, session 9).
+/// Sharpening amplifies what the views disagree on, so it fades with their misregistration
+/// measured in photo pixels (`d2 / t^2`, independent of the texel density), none from one
+/// pixel on: the real temple's views lie 1.1 pixels^2 apart and get none.
+pub(crate) fn sharpening_strength(t: f64, d2: f64) -> f64 {
+    if !(t > 0.0 && d2.is_finite()) {
+        return 0.0;
+    }
+    (1.0 / 6.0 + t * t / 16.0) * (1.0 - d2 / (t * t)).max(0.0)
 }
 
 /// The renderer's bilinear lookup (`fresco_core::raster::sample_bilinear`) on a float atlas
@@ -803,11 +850,11 @@ mod tests {
             let sampled: Vec<[f32; 3]> = (0..s * s)
                 .map(|k| [pattern((k % s) as f64 + 0.5, (k / s) as f64 + 0.5) as f32; 3])
                 .collect();
-            let mut mask = vec![255u8; s * s];
+            let mut photo = vec![true; s * s];
             // A filled texel: it and its neighbours must be left alone.
-            mask[5 * s + 5] = 128;
+            photo[5 * s + 5] = false;
             let mut sharp = sampled.clone();
-            sharpen_for_bilinear(&mut sharp, &mask, s, 1.0 / 6.0);
+            sharpen_for_bilinear(&mut sharp, &photo, s, 1.0 / 6.0);
             for k in [5 * s + 5, 5 * s + 4, 4 * s + 5, 0, s * s - 1] {
                 assert_eq!(sharp[k], sampled[k], "texel {k} changed");
             }
@@ -818,5 +865,62 @@ mod tests {
                 "frequency {freq}: playback error {after} against {before} unsharpened"
             );
         }
+    }
+
+    /// Texels read from photo pixels `t` texels wide carry the pixels' box blur on top of
+    /// the playback's: the strength for `t` takes most of both away. (In this model alone,
+    /// without the bicubic read and the blending of views, the best strength is 0.25-0.3 for
+    /// `t = 1.8`, below the rule's 0.37 that the synthetic scenes measure best.)
+    #[test]
+    fn sharpening_strength_undoes_the_photo_pixels_blur() {
+        let (s, t) = (48, 1.8);
+        for freq in [0.1, 0.15, 0.2] {
+            let pattern = |x: f64, y: f64| {
+                0.5 + 0.2 * (std::f64::consts::TAU * freq * x).sin()
+                    + 0.2 * (std::f64::consts::TAU * 0.7 * freq * y + 1.0).cos()
+            };
+            // The pattern averaged over a t x t box around each texel centre (16 x 16 points).
+            let boxed = |cx: f64, cy: f64| {
+                let mut sum = 0.0;
+                for j in 0..16 {
+                    for i in 0..16 {
+                        let (u, v) = ((i as f64 + 0.5) / 16.0 - 0.5, (j as f64 + 0.5) / 16.0 - 0.5);
+                        sum += pattern(cx + t * u, cy + t * v);
+                    }
+                }
+                sum / 256.0
+            };
+            let sampled: Vec<[f32; 3]> = (0..s * s)
+                .map(|k| [boxed((k % s) as f64 + 0.5, (k / s) as f64 + 0.5) as f32; 3])
+                .collect();
+            let photo = vec![true; s * s];
+            let error = |a: f64| {
+                let mut sharp = sampled.clone();
+                sharpen_for_bilinear(&mut sharp, &photo, s, a as f32);
+                playback_error(&sharp, s, pattern)
+            };
+            let (blurred, rule) = (error(0.0), error(sharpening_strength(t, 0.0)));
+            assert!(
+                rule < blurred / 2.5,
+                "frequency {freq}: {rule} sharpened against {blurred} unsharpened"
+            );
+        }
+    }
+
+    #[test]
+    fn sharpening_fades_with_misregistration_in_photo_pixels() {
+        // Exact views: the playback's 1/6 plus the pixel's t^2 / 16.
+        assert!((sharpening_strength(1.0, 0.0) - (1.0 / 6.0 + 1.0 / 16.0)).abs() < 1e-12);
+        // The same misregistration in pixels gives the same fade at any texel density.
+        let fade = |t: f64, d2_px: f64| {
+            sharpening_strength(t, d2_px * t * t) / sharpening_strength(t, 0.0)
+        };
+        assert!((fade(1.0, 0.3) - 0.7).abs() < 1e-12);
+        assert!((fade(2.0, 0.3) - 0.7).abs() < 1e-12);
+        // None from one pixel^2 of misregistration on, and none for unusable inputs.
+        assert_eq!(sharpening_strength(1.5, 1.5 * 1.5), 0.0);
+        assert_eq!(sharpening_strength(1.5, 10.0), 0.0);
+        assert_eq!(sharpening_strength(0.0, 0.0), 0.0);
+        assert_eq!(sharpening_strength(1.0, f64::NAN), 0.0);
     }
 }

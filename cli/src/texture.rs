@@ -68,8 +68,8 @@ pub struct TextureArgs {
     /// (180: every seam edge is blended).
     #[arg(long, default_value_t = TextureConfig::default().seam_strip_crease_deg)]
     pub seam_strip_crease: f64,
-    /// Strength of the sharpening that undoes a viewer's bilinear blur where the views agree
-    /// to within a texel (0: off).
+    /// How much of the playback blur (a viewer's bilinear lookup, the photos' pixels) the
+    /// texels are sharpened against where the views agree to within a pixel: 1 all, 0 off.
     #[arg(long, default_value_t = TextureConfig::default().playback_sharpening)]
     pub playback_sharpening: f64,
     /// Also write model.obj + model.mtl (with the atlas PNGs).

@@ -10,7 +10,7 @@
 //! | dense    | images down to 320 px, 3 source views, 3 PatchMatch iterations | images up to 1600 px (default), 4 sources, 4 iterations | 3200 px, the defaults' 8 sources and 6 iterations |
 //! | mesh     | Poisson depth 7, 20k faces             | depth 9, 200k faces                     | depth 10, 500k faces         |
 //! | unwrap   | 1024 px chart packing                  | 2048 px                                 | 4096 px                      |
-//! | texture  | 0.5 texel per photo pixel, atlas at most 2048 | defaults: 1 texel per pixel, at most 8192 | 1.5 texels per pixel |
+//! | texture  | 0.5 texel per photo pixel, atlas at most 2048 | defaults: 1.5 texels per pixel, at most 8192 | 2 texels per pixel |
 //!
 //! The unwrap's atlas size only sets the packing's resolution: the texture stage sizes the
 //! atlas for the photos' resolution (`--texels-per-pixel`, capped by `--atlas`). `draft` is
@@ -89,7 +89,7 @@ impl Quality {
         match self {
             Quality::Draft => &["--texels-per-pixel", "0.5", "--atlas", "2048"],
             Quality::Normal => &[],
-            Quality::High => &["--texels-per-pixel", "1.5"],
+            Quality::High => &["--texels-per-pixel", "2"],
         }
     }
 }
