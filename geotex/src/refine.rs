@@ -165,7 +165,7 @@ pub fn refine(
 /// between two added vertices gets the midpoint of theirs (recursively, back to the input's
 /// values). The one place the refinement's correspondence is carried: the displacement the
 /// synthesis starts from and the rest positions of the output both go through it.
-pub fn carry<T: Copy>(values: &mut Vec<T>, parents: &Parents, mid: impl Fn(T, T) -> T) {
+pub fn carry<T: Copy>(values: &mut Vec<T>, parents: &[[u32; 2]], mid: impl Fn(T, T) -> T) {
     values.reserve(parents.len());
     for [a, b] in parents {
         let v = mid(values[*a as usize], values[*b as usize]);

@@ -630,6 +630,7 @@ fn texture_output(
                         .filter(|&v| out_labels[v as usize] == r)
                         .collect(),
                     carried: &carried,
+                    parents: &parents,
                 };
                 let (x, fig) = synthesise_region(&example, &target, &synth_cfg, &|n| {
                     progress.advance(n as u64)

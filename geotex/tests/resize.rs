@@ -108,17 +108,25 @@ fn check_ratios(what: &str, ratios: &[f64]) {
     }
 }
 
-/// The bound at every seed. Seeds 0-4 give pitch +2.0, -2.9, 0.0, +3.3, +0.1% (met
-/// since the coarsest level keeps the best of several random starts; seed 4 was +10.7%
-/// from one start); big bumps x/y 1.071/1.018, 0.998/0.971, 0.984/1.028, 0.969/0.993,
-/// 0.988/0.940, not met yet (their test is ignored: run with `-- --ignored`).
+/// The bound at every seed. Seeds 0-4 give pitch -1.7, -0.7, -0.1, -1.3, +0.6%;
+/// bumps (small x/y, big x/y) 1.048/0.992 0.973/0.980, 1.031/1.010 1.009/1.000,
+/// 1.004/1.028 0.997/0.986, 1.020/0.981 0.987/0.952, 0.987/0.967 1.013/0.970 (session 9:
+/// the synthesis takes the fairing's trend out of the example and narrows the border band,
+/// the element measure cuts each bump at half its own height; bench/RESULTS.md).
 fn check_ratios_strictly(what: &str, ratios: &[f64]) {
     for (seed, r) in SEEDS.zip(ratios) {
         assert!((r - 1.0).abs() < 0.05, "{what}: seed {seed} ratio {r}");
     }
 }
 
-fn thread_pitch_ratios() -> Vec<f64> {
+/// Per seed, the texture method's pitch out/in: computed once for the mean and the strict
+/// test (each resize of the five seeds costs seconds).
+fn thread_pitch_ratios() -> &'static [f64] {
+    static RATIOS: std::sync::OnceLock<Vec<f64>> = std::sync::OnceLock::new();
+    RATIOS.get_or_init(compute_thread_pitch_ratios)
+}
+
+fn compute_thread_pitch_ratios() -> Vec<f64> {
     let cfg = gt::ThreadedCylinderConfig::default();
     let model = gt::threaded_cylinder(&cfg);
     let truth = match model.textures[0].kind {
@@ -168,12 +176,12 @@ fn thread_pitch_ratios() -> Vec<f64> {
 
 #[test]
 fn thread_pitch_is_kept_by_texture_and_doubled_by_uniform() {
-    check_ratios("texture pitch", &thread_pitch_ratios());
+    check_ratios("texture pitch", thread_pitch_ratios());
 }
 
 #[test]
 fn thread_pitch_is_kept_within_five_percent_at_every_seed() {
-    check_ratios_strictly("texture pitch", &thread_pitch_ratios());
+    check_ratios_strictly("texture pitch", thread_pitch_ratios());
 }
 
 #[test]
@@ -247,8 +255,13 @@ fn an_open_textured_mesh_is_resized_with_its_boundary_following_the_base() {
 }
 
 /// Per seed, per region (small bumps, big bumps) and axis (x, y): the texture method's
-/// bump radius out/in; uniform's checked on the way.
-fn bump_radius_ratios() -> Vec<[[f64; 2]; 2]> {
+/// bump radius out/in; uniform's checked on the way. Computed once for both tests.
+fn bump_radius_ratios() -> &'static [[[f64; 2]; 2]] {
+    static RATIOS: std::sync::OnceLock<Vec<[[f64; 2]; 2]>> = std::sync::OnceLock::new();
+    RATIOS.get_or_init(compute_bump_radius_ratios)
+}
+
+fn compute_bump_radius_ratios() -> Vec<[[f64; 2]; 2]> {
     let cfg = gt::BumpyBoxConfig::default();
     let model = gt::bumpy_box(&cfg);
     let target = Target::Scale([2.0, 1.0, 1.0]);
@@ -270,12 +283,12 @@ fn bump_radius_ratios() -> Vec<[[f64; 2]; 2]> {
                 let before = &t.input.regions[k];
                 let after = &t.output.regions[k];
                 // Each segmented region is one of the generator's two bump sizes, small
-                // first: its measured radius (2 sigma of the raised part, about 0.45 of
-                // the support radius) says which.
+                // first: its measured radius (2 sigma of the part above half its height,
+                // about 0.42 of the support radius) says which.
                 let r_in = before.element_radius[0].unwrap();
                 let truth = truths[k];
                 assert!(
-                    r_in > 0.4 * truth && r_in < 0.8 * truth,
+                    r_in > 0.35 * truth && r_in < 0.6 * truth,
                     "seed {seed} region {k}: {r_in} vs {truth}"
                 );
                 assert!(
@@ -311,7 +324,6 @@ fn bump_radius_is_kept_by_texture_and_doubled_by_uniform_along_the_stretch() {
 }
 
 #[test]
-#[ignore = "not met: big bumps 0.940-1.071 over seeds 0-4"]
 fn bump_radius_is_kept_within_five_percent_at_every_seed() {
     let ratios = bump_radius_ratios();
     for (k, name) in ["small", "big"].iter().enumerate() {
