@@ -43,10 +43,18 @@
 //! already judged (only the refinement's fresh perturbations are given up); and a propagation
 //! candidate within those tolerances of an earlier one is taken as that one.
 //!
+//! Work that cannot change the outcome is not done: each pixel keeps the per-source costs of
+//! its plane, so the next sweep does not compute them again for candidate 0; and a refinement
+//! trial (judged under the view weights, a weighted mean of non-negative costs) stops as soon
+//! as its heaviest sources' share alone cannot beat the best plane. Both give the same depth
+//! maps bit for bit as computing everything.
+//!
 //! **Speed.** The window cost (most of the time) runs in AVX2 intrinsics when the CPU has them
-//! (detected at run time; the build targets SSE2): a window row is one 8-lane register and its
-//! bilinear neighbours four gathers, with the portable code's operations in the same order and
-//! no FMA, so that both give the same depth maps bit for bit ([`Kernel`]).
+//! (detected at run time; the build targets SSE2): the window's samples are packed 8 to a
+//! register, row after row (the 36 samples of a 6x6 window in 5 registers instead of 6 rows of
+//! 8 lanes), the bilinear neighbours of a register four gathers, with the portable code's
+//! operations in the same order and no FMA, so that both give the same depth maps bit for bit
+//! ([`Kernel`]).
 //!
 //! Everything is deterministic: the random draws of pixel `i` in iteration `t` come from
 //! `Rng::for_item(seed ^ t, i)`; pixels of one colour read only the other colour.
@@ -87,7 +95,9 @@ pub struct PatchMatchConfig {
     /// Propagation + refinement sweeps (both colours) at the coarsest scale. Default 6.
     pub iterations: usize,
     /// Sweeps at each finer scale but the finest, which starts from the coarser scale's
-    /// planes. Default 2.
+    /// planes. Default 1: the finest scale's sweeps follow, and a second sweep here cost the
+    /// synthetic temple (24 views at 640x480) 8% more time for a 90th-percentile error 0.006
+    /// points of the diagonal lower and 0.08 points more completeness (issue 13).
     pub fine_iterations: usize,
     /// Sweeps at the finest scale (full resolution) when there are coarser ones. Default 2.
     /// Most of the first pass's work is here (a full-resolution sweep costs 4x one at half
@@ -115,7 +125,9 @@ pub struct PatchMatchConfig {
     /// Reprojection errors are clamped at this many pixels. Default 3 (COLMAP's).
     pub geometric_max_px: f32,
     /// Sweeps of the geometric pass, at full resolution from the first pass's planes.
-    /// Default 2.
+    /// Default 1: a second sweep is about a seventh of sceaux_castle's window costs, and
+    /// moved the synthetic temple's median and 90th-percentile errors by less than 0.001% of
+    /// the diagonal and its completeness by 0.04 points (issue 13).
     pub geometric_iterations: usize,
     /// In the geometric pass, pixels whose first-pass plane reprojects forward and back
     /// within this many pixels through at least two sources' depth maps (every source when
@@ -129,10 +141,12 @@ pub struct PatchMatchConfig {
     /// its normal by more than `still_normal_deg`. In the same sweeps, a propagation
     /// candidate within these tolerances of an earlier candidate of the pixel is taken as that
     /// one (its costs are not computed again), and so is a coarse plane in the upsampling.
-    /// 0: sweep every pixel, and only exact repeats are merged. Default 0.0005 (about a tenth of a pixel of disparity at the temple's
-    /// 30-degree baselines).
+    /// 0: sweep every pixel, and only exact repeats are merged. Default 0.002, the
+    /// full-resolution refinement's smallest depth perturbation (about 0.4 pixel of
+    /// disparity at the temple's 30-degree baselines): on sceaux_castle a fifth fewer
+    /// propagation candidates are costed at full resolution than with 0.0005 (issue 13).
     pub still_depth: f32,
-    /// See `still_depth`, degrees. Default 2.
+    /// See `still_depth`, degrees. Default 5.
     pub still_normal_deg: f32,
 }
 
@@ -145,7 +159,7 @@ impl Default for PatchMatchConfig {
             sigma_spatial: 12.0,
             scales: 3,
             iterations: 6,
-            fine_iterations: 2,
+            fine_iterations: 1,
             finest_iterations: 2,
             top_k: 2,
             adaptive_views: true,
@@ -153,10 +167,10 @@ impl Default for PatchMatchConfig {
             max_cost: 0.5,
             geometric_weight: 0.2,
             geometric_max_px: 3.0,
-            geometric_iterations: 2,
+            geometric_iterations: 1,
             settled_px: 0.5,
-            still_depth: 0.0005,
-            still_normal_deg: 2.0,
+            still_depth: 0.002,
+            still_normal_deg: 5.0,
         }
     }
 }
@@ -405,6 +419,9 @@ fn regions() -> Vec<Vec<(i32, i32)>> {
     out
 }
 
+/// Marks a source cost not computed (costs are never negative).
+const UNKNOWN_COST: f32 = -1.0;
+
 /// The checkerboard: hypotheses of the two colours in separate arrays (pixel (x, y) has
 /// colour `(x + y) % 2` and index `y * half + x / 2` in its array), so that a parallel pass
 /// over one colour borrows it mutably and the other immutably.
@@ -413,16 +430,27 @@ struct Board {
     height: usize,
     half: usize,
     cells: [Vec<Hyp>; 2],
+    /// Per cell, the per-source costs of its plane (`sources` of them, [`UNKNOWN_COST`] for
+    /// those not computed): the next sweep's propagation starts with the pixel's own plane,
+    /// whose costs need not be computed again.
+    costs: [Vec<f32>; 2],
+    sources: usize,
 }
 
 impl Board {
-    fn new(width: usize, height: usize) -> Board {
+    fn new(width: usize, height: usize, sources: usize) -> Board {
         let half = width.div_ceil(2);
+        let sources = sources.max(1);
         Board {
             width,
             height,
             half,
             cells: [vec![INVALID; half * height], vec![INVALID; half * height]],
+            costs: [
+                vec![UNKNOWN_COST; half * height * sources],
+                vec![UNKNOWN_COST; half * height * sources],
+            ],
+            sources,
         }
     }
 
@@ -457,6 +485,13 @@ struct Solver<'a> {
     checks: Vec<Option<DepthCheck<'a>>>,
     /// Window sample offsets along one axis.
     offsets: Vec<i32>,
+    /// The window's samples packed row after row, `LANES` to a register: sample `k` is
+    /// (`k % m`, `k / m`) of the `m x m` samples; the lanes past the last sample repeat it
+    /// (with weight 0). Its offset from the window's first sample, pixels, in x and y.
+    lane_dx: [f32; MAX_WINDOW],
+    lane_dy: [f32; MAX_WINDOW],
+    /// Registers of `LANES` samples that hold the window.
+    registers: usize,
     /// Spatial part of the bilateral weights, per window sample.
     spatial: Vec<f32>,
     regions: Vec<Vec<(i32, i32)>>,
@@ -505,12 +540,20 @@ impl<'a> Solver<'a> {
             .map(|k| -r + k * step)
             .take_while(|&o| o <= r)
             .collect();
+        let m = offsets.len();
         let mut spatial = vec![0.0f32; MAX_WINDOW];
         for (j, &dy) in offsets.iter().enumerate() {
             for (i, &dx) in offsets.iter().enumerate() {
                 let dist = ((dx * dx + dy * dy) as f32).sqrt();
-                spatial[j * LANES + i] = (-dist / cfg.sigma_spatial).exp();
+                spatial[j * m + i] = (-dist / cfg.sigma_spatial).exp();
             }
+        }
+        let registers = (m * m).div_ceil(LANES);
+        let (mut lane_dx, mut lane_dy) = ([0.0f32; MAX_WINDOW], [0.0f32; MAX_WINDOW]);
+        for k in 0..registers * LANES {
+            let k_in = k.min(m * m - 1);
+            lane_dx[k] = (k_in % m) as f32 * step as f32;
+            lane_dy[k] = (k_in / m) as f32 * step as f32;
         }
         let checks = problem
             .sources
@@ -526,6 +569,9 @@ impl<'a> Solver<'a> {
             sources,
             checks,
             offsets,
+            lane_dx,
+            lane_dy,
+            registers,
             spatial,
             regions: regions(),
             active: Vec::new(),
@@ -584,11 +630,12 @@ impl<'a> Solver<'a> {
         let mut values = [0.0f32; MAX_WINDOW];
         let inv_sigma_color = 1.0 / self.cfg.sigma_color;
         let mut total = 0.0f32;
-        // Sample (i, j) of the window lives at j * LANES + i; the unused lanes keep weight 0.
+        // Sample (i, j) of the window lives at j * m + i; the unused lanes keep weight 0.
+        let m = self.offsets.len();
         for (j, &dy) in self.offsets.iter().enumerate() {
             let row = ((y as i32 + dy) as usize) * w;
             for (i, &dx) in self.offsets.iter().enumerate() {
-                let k = j * LANES + i;
+                let k = j * m + i;
                 let v = img.data[row + (x as i32 + dx) as usize];
                 let weight = self.spatial[k] * (-(v - centre).abs() * inv_sigma_color).exp();
                 values[k] = v;
@@ -632,28 +679,21 @@ impl<'a> Solver<'a> {
         let Some((x0, y0)) = self.warped_window_inside(src, h, x, y) else {
             return MAX_COST;
         };
-        // One window row at a time, LANES samples wide: the projective divisions and the
-        // sums vectorise; the lanes past the window's side carry weight 0.
-        let step = self.cfg.window_step as f32;
+        // LANES samples at a time (the window's rows packed one after the other): the
+        // projective divisions and the sums vectorise; the lanes past the last sample repeat
+        // it and carry weight 0.
         let img = &src.image.data;
         let iw = src.image.width;
-        let m = self.offsets.len();
-        let (mut cx, mut cy, mut cz) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
-        for i in 0..LANES {
-            let xx = x0 + (i.min(m - 1)) as f32 * step;
-            cx[i] = h[0] * xx;
-            cy[i] = h[3] * xx;
-            cz[i] = h[6] * xx;
-        }
         let (mut sa, mut sw, mut sww) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
-        for j in 0..m {
-            let yy = y0 + j as f32 * step;
-            let (bx, by, bz) = (h[1] * yy + h[2], h[4] * yy + h[5], h[7] * yy + h[8]);
+        for r in 0..self.registers {
+            let lanes = r * LANES..(r + 1) * LANES;
+            let (dx, dy) = (&self.lane_dx[lanes.clone()], &self.lane_dy[lanes.clone()]);
             let (mut us, mut vs) = ([0.0f32; LANES], [0.0f32; LANES]);
             for i in 0..LANES {
-                let iz = 1.0 / (cz[i] + bz);
-                us[i] = (cx[i] + bx) * iz;
-                vs[i] = (cy[i] + by) * iz;
+                let (xx, yy) = (x0 + dx[i], y0 + dy[i]);
+                let iz = 1.0 / (h[6] * xx + (h[7] * yy + h[8]));
+                us[i] = (h[0] * xx + (h[1] * yy + h[2])) * iz;
+                vs[i] = (h[3] * xx + (h[4] * yy + h[5])) * iz;
             }
             // Integer and fractional parts lane-wise: truncation to i32 is one vector
             // instruction (to usize it is a branchy sequence per sample on x86-64).
@@ -663,8 +703,8 @@ impl<'a> Solver<'a> {
                 // SAFETY: the four corners of the warped window lie in
                 // [0, width - 1.001] x [0, height - 1.001] with positive z, so every sample
                 // (a point of their convex hull up to rounding far below the 0.001 margin;
-                // the lanes past the window's side repeat its last column) is finite and
-                // truncates to 0 <= ui <= width - 2 and 0 <= vi <= height - 2.
+                // the lanes past the last sample repeat it) is finite and truncates to
+                // 0 <= ui <= width - 2 and 0 <= vi <= height - 2.
                 unsafe {
                     ui[i] = us[i].to_int_unchecked();
                     vi[i] = vs[i].to_int_unchecked();
@@ -672,14 +712,13 @@ impl<'a> Solver<'a> {
                 fu[i] = us[i] - ui[i] as f32;
                 fv[i] = vs[i] - vi[i] as f32;
             }
-            // The lanes past the window's side read nothing and carry weight 0.
             let (mut p00, mut p01, mut p10, mut p11) = (
                 [0.0f32; LANES],
                 [0.0f32; LANES],
                 [0.0f32; LANES],
                 [0.0f32; LANES],
             );
-            for i in 0..m {
+            for i in 0..LANES {
                 let base = vi[i] as usize * iw + ui[i] as usize;
                 // SAFETY: as above, base + iw + 1 < width * height.
                 unsafe {
@@ -695,10 +734,7 @@ impl<'a> Solver<'a> {
                 let bottom = p10[i] + (p11[i] - p10[i]) * fu[i];
                 s[i] = top + (bottom - top) * fv[i];
             }
-            let (wr, ar) = (
-                &win.w[j * LANES..(j + 1) * LANES],
-                &win.a[j * LANES..(j + 1) * LANES],
-            );
+            let (wr, ar) = (&win.w[lanes.clone()], &win.a[lanes]);
             for i in 0..LANES {
                 sa[i] += ar[i] * s[i];
                 sw[i] += wr[i] * s[i];
@@ -756,26 +792,10 @@ impl<'a> Solver<'a> {
         let Some((x0, y0)) = self.warped_window_inside(src, h, x, y) else {
             return MAX_COST;
         };
-        let step = self.cfg.window_step as f32;
         let img = src.image.data.as_ptr();
         let iw = src.image.width;
-        let m = self.offsets.len();
-        let (mut cx, mut cy, mut cz) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
-        for i in 0..LANES {
-            let xx = x0 + (i.min(m - 1)) as f32 * step;
-            cx[i] = h[0] * xx;
-            cy[i] = h[3] * xx;
-            cz[i] = h[6] * xx;
-        }
-        // SAFETY (loads): the arrays hold LANES = 8 floats each; `win.w`/`win.a` hold LANES
-        // per row for m <= LANES rows.
-        let (cx, cy, cz) = unsafe {
-            (
-                _mm256_loadu_ps(cx.as_ptr()),
-                _mm256_loadu_ps(cy.as_ptr()),
-                _mm256_loadu_ps(cz.as_ptr()),
-            )
-        };
+        let hv = h.map(|c| _mm256_set1_ps(c));
+        let (x0, y0) = (_mm256_set1_ps(x0), _mm256_set1_ps(y0));
         let one = _mm256_set1_ps(1.0);
         let width = _mm256_set1_epi32(iw as i32);
         let (mut sa, mut sw, mut sww) = (
@@ -783,14 +803,26 @@ impl<'a> Solver<'a> {
             _mm256_setzero_ps(),
             _mm256_setzero_ps(),
         );
-        for j in 0..m {
-            let yy = y0 + j as f32 * step;
-            let bx = _mm256_set1_ps(h[1] * yy + h[2]);
-            let by = _mm256_set1_ps(h[4] * yy + h[5]);
-            let bz = _mm256_set1_ps(h[7] * yy + h[8]);
-            let iz = _mm256_div_ps(one, _mm256_add_ps(cz, bz));
-            let us = _mm256_mul_ps(_mm256_add_ps(cx, bx), iz);
-            let vs = _mm256_mul_ps(_mm256_add_ps(cy, by), iz);
+        for r in 0..self.registers {
+            // SAFETY (loads): `lane_dx`, `lane_dy`, `win.w` and `win.a` hold
+            // MAX_WINDOW >= registers * LANES floats.
+            let (dx, dy) = unsafe {
+                (
+                    _mm256_loadu_ps(self.lane_dx.as_ptr().add(r * LANES)),
+                    _mm256_loadu_ps(self.lane_dy.as_ptr().add(r * LANES)),
+                )
+            };
+            let (xx, yy) = (_mm256_add_ps(x0, dx), _mm256_add_ps(y0, dy));
+            // h[a] x + (h[b] y + h[c]), as the portable code.
+            let lin = |a: usize, b: usize, c: usize| {
+                _mm256_add_ps(
+                    _mm256_mul_ps(hv[a], xx),
+                    _mm256_add_ps(_mm256_mul_ps(hv[b], yy), hv[c]),
+                )
+            };
+            let iz = _mm256_div_ps(one, lin(6, 7, 8));
+            let us = _mm256_mul_ps(lin(0, 1, 2), iz);
+            let vs = _mm256_mul_ps(lin(3, 4, 5), iz);
             let ui = _mm256_cvttps_epi32(us);
             let vi = _mm256_cvttps_epi32(vs);
             let fu = _mm256_sub_ps(us, _mm256_cvtepi32_ps(ui));
@@ -829,8 +861,8 @@ impl<'a> Solver<'a> {
             let s = _mm256_add_ps(top, _mm256_mul_ps(_mm256_sub_ps(bottom, top), fv));
             let (wr, ar) = unsafe {
                 (
-                    _mm256_loadu_ps(win.w.as_ptr().add(j * LANES)),
-                    _mm256_loadu_ps(win.a.as_ptr().add(j * LANES)),
+                    _mm256_loadu_ps(win.w.as_ptr().add(r * LANES)),
+                    _mm256_loadu_ps(win.a.as_ptr().add(r * LANES)),
                 )
             };
             sa = _mm256_add_ps(sa, _mm256_mul_ps(ar, s));
@@ -953,11 +985,100 @@ impl<'a> Solver<'a> {
         costs
     }
 
-    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`): the mean of the
-    /// `top_k` best sources.
-    fn cost(&self, x: usize, y: usize, depth: f32, normal: &[f32; 3], win: &Window) -> f32 {
-        let mut costs = self.source_costs(x, y, depth, normal, win, None);
-        aggregate(&mut costs[..self.sources.len()], self.cfg.top_k)
+    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`), the mean of the
+    /// `top_k` best sources, and its per-source costs.
+    fn cost(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+    ) -> (f32, [f32; MAX_SOURCES]) {
+        let costs = self.source_costs(x, y, depth, normal, win, None);
+        let mut sorted = costs;
+        (
+            aggregate(&mut sorted[..self.sources.len()], self.cfg.top_k),
+            costs,
+        )
+    }
+
+    /// The per-source costs of the pixel's own plane from `stored` (its costs of the last
+    /// visit), computing only those marked [`UNKNOWN_COST`].
+    fn complete_costs(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+        stored: &[f32],
+    ) -> [f32; MAX_SOURCES] {
+        let mut missing = [0.0f32; MAX_SOURCES];
+        let mut any = false;
+        for (m, &c) in missing.iter_mut().zip(stored) {
+            if c == UNKNOWN_COST {
+                *m = 1.0;
+                any = true;
+            }
+        }
+        let mut costs = if any {
+            self.source_costs(x, y, depth, normal, win, Some(&missing))
+        } else {
+            [MAX_COST; MAX_SOURCES]
+        };
+        for (c, &s) in costs.iter_mut().zip(stored) {
+            if s != UNKNOWN_COST {
+                *c = s;
+            }
+        }
+        costs
+    }
+
+    /// The per-source costs of a refinement trial under view `weights`, the sources of weight
+    /// 0 marked [`UNKNOWN_COST`]; `None` as soon as the weighted mean cannot fall below
+    /// `best` (costs are never negative: the sum of the sources seen so far bounds it from
+    /// below). The heaviest sources go first. A trial that could still win is costed in full,
+    /// so the choice is the one the full weighted mean makes (a margin of 1e-4 covers the
+    /// rounding of sums taken in another order).
+    #[allow(clippy::too_many_arguments)]
+    fn bounded_costs(
+        &self,
+        x: usize,
+        y: usize,
+        depth: f32,
+        normal: &[f32; 3],
+        win: &Window,
+        weights: &[f32; MAX_SOURCES],
+        best: f32,
+    ) -> Option<[f32; MAX_SOURCES]> {
+        let n = self.sources.len();
+        let mut order = [0usize; MAX_SOURCES];
+        let mut m = 0;
+        for (j, &w) in weights.iter().enumerate().take(n) {
+            if w != 0.0 {
+                order[m] = j;
+                m += 1;
+            }
+        }
+        order[..m].sort_by(|&a, &b| weights[b].total_cmp(&weights[a]).then(a.cmp(&b)));
+        let total: f32 = weights.iter().sum();
+        let limit = best * total * (1.0 + 1e-4);
+        let mut costs = [MAX_COST; MAX_SOURCES];
+        for c in costs.iter_mut().take(n) {
+            *c = UNKNOWN_COST;
+        }
+        let mut partial = 0.0f32;
+        for (k, &j) in order[..m].iter().enumerate() {
+            let mut only = [0.0f32; MAX_SOURCES];
+            only[j] = 1.0;
+            costs[j] = self.source_costs(x, y, depth, normal, win, Some(&only))[j];
+            partial += costs[j] * weights[j];
+            if k + 1 < m && partial > limit {
+                return None;
+            }
+        }
+        Some(costs)
     }
 
     /// ACMH's view weights (Xu and Tao 2019, section 3.2) from the per-source costs of the
@@ -1165,13 +1286,18 @@ impl<'a> Solver<'a> {
     /// Sets every active pixel of `board` to `plane(x, y, window)` (left invalid where it
     /// gives `None`), both colours, rows in parallel: the one loop of `initialise` and
     /// `upsample`.
-    fn fill(&self, board: &mut Board, plane: impl Fn(usize, usize, &Window) -> Option<Hyp> + Sync) {
-        let (w, half) = (self.width(), board.half);
+    fn fill(
+        &self,
+        board: &mut Board,
+        plane: impl Fn(usize, usize, &Window) -> Option<(Hyp, [f32; MAX_SOURCES])> + Sync,
+    ) {
+        let (w, half, n) = (self.width(), board.half, board.sources);
         for colour in 0..2 {
             board.cells[colour]
                 .par_chunks_mut(half)
+                .zip(board.costs[colour].par_chunks_mut(half * n))
                 .enumerate()
-                .for_each(|(y, row)| {
+                .for_each(|(y, (row, costs))| {
                     for (i, cell) in row.iter_mut().enumerate() {
                         let x = 2 * i + ((colour + y) & 1);
                         if x >= w || !self.active[y * w + x] {
@@ -1180,8 +1306,9 @@ impl<'a> Solver<'a> {
                         let Some(win) = self.window(x, y) else {
                             continue;
                         };
-                        if let Some(h) = plane(x, y, &win) {
+                        if let Some((h, c)) = plane(x, y, &win) {
                             *cell = h;
+                            costs[i * n..(i + 1) * n].copy_from_slice(&c[..n]);
                         }
                     }
                 });
@@ -1190,17 +1317,20 @@ impl<'a> Solver<'a> {
 
     /// A random plane (inverse depth uniform over the depth range, normal over the hemisphere
     /// facing the camera) at (`x`, `y`), with its cost.
-    fn random_plane(&self, x: usize, y: usize, win: &Window) -> Hyp {
+    fn random_plane(&self, x: usize, y: usize, win: &Window) -> (Hyp, [f32; MAX_SOURCES]) {
         let mut rng = Rng::for_item(self.seed, (y * self.width() + x) as u64);
         let ray = self.problem.k.ray(x as f32, y as f32);
         let depth = self.random_depth(&mut rng);
         let normal = self.random_normal(&mut rng, &ray);
-        let cost = self.cost(x, y, depth, &normal, win);
-        Hyp {
-            depth,
-            normal,
-            cost,
-        }
+        let (cost, costs) = self.cost(x, y, depth, &normal, win);
+        (
+            Hyp {
+                depth,
+                normal,
+                cost,
+            },
+            costs,
+        )
     }
 
     /// Planes with their costs at every active pixel: those of `prior`, a previous pass's
@@ -1212,11 +1342,15 @@ impl<'a> Solver<'a> {
             Some(match prior {
                 Some(p) if p.depth[k] > 0.0 => {
                     let (depth, normal) = (p.depth[k], p.normal[k]);
-                    Hyp {
-                        depth,
-                        normal,
-                        cost: self.cost(x, y, depth, &normal, win),
-                    }
+                    let (cost, costs) = self.cost(x, y, depth, &normal, win);
+                    (
+                        Hyp {
+                            depth,
+                            normal,
+                            cost,
+                        },
+                        costs,
+                    )
                 }
                 _ => self.random_plane(x, y, win),
             })
@@ -1226,8 +1360,17 @@ impl<'a> Solver<'a> {
     /// Planes from the coarser scale's `coarse` board (image half the size): each pixel
     /// evaluates the planes of the (up to) four nearest coarse pixels, moved to its own ray,
     /// and keeps the cheapest (an upsampling guided by the matching cost, in the spirit of
-    /// ACMM's joint bilateral upsampling); a random plane where none has a depth.
-    fn upsample(&self, coarse: &Board, coarse_k: &Intrinsics, board: &mut Board) {
+    /// ACMM's joint bilateral upsampling); a random plane where none has a depth. With
+    /// `nearest_only` (full resolution, where it is most of the upsampling's work) only the
+    /// nearest coarse pixel's plane is costed (the next one where it has none): the next sweep
+    /// propagates the neighbours' planes anyway.
+    fn upsample(
+        &self,
+        coarse: &Board,
+        coarse_k: &Intrinsics,
+        board: &mut Board,
+        nearest_only: bool,
+    ) {
         let k = self.problem.k;
         let near = (self.cfg.still_depth > 0.0).then(|| {
             (
@@ -1239,13 +1382,21 @@ impl<'a> Solver<'a> {
             let to = k.ray(x as f32, y as f32);
             let (cx, cy) = ((x as f32 + 0.5) / 2.0 - 0.5, (y as f32 + 0.5) / 2.0 - 0.5);
             let (x0, y0) = (cx.floor().max(0.0) as usize, cy.floor().max(0.0) as usize);
-            let mut best = INVALID;
+            let mut neighbours = [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)];
+            if nearest_only {
+                // The nearest coarse pixel first, the others where it has no plane.
+                let nearest = (cx.round().max(0.0) as usize, cy.round().max(0.0) as usize);
+                if let Some(at) = neighbours.iter().position(|&n| n == nearest) {
+                    neighbours.swap(0, at);
+                }
+            }
+            let mut best = (INVALID, [UNKNOWN_COST; MAX_SOURCES]);
             // Coarse neighbours often hold one plane (propagation copies planes): a plane
             // within the still tolerances of one already costed is not costed again.
             let mut tried: [(f32, [f32; 3]); 4] = [(0.0, [0.0; 3]); 4];
             let mut n_tried = 0;
-            for (nx, ny) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
-                if nx >= coarse.width || ny >= coarse.height {
+            for (nx, ny) in neighbours {
+                if nx >= coarse.width || ny >= coarse.height || (nearest_only && n_tried > 0) {
                     continue;
                 }
                 let h = coarse.get(nx, ny);
@@ -1270,16 +1421,19 @@ impl<'a> Solver<'a> {
                 }
                 tried[n_tried] = (depth, h.normal);
                 n_tried += 1;
-                let cost = self.cost(x, y, depth, &h.normal, win);
-                if cost < best.cost {
-                    best = Hyp {
-                        depth,
-                        normal: h.normal,
-                        cost,
-                    };
+                let (cost, costs) = self.cost(x, y, depth, &h.normal, win);
+                if cost < best.0.cost {
+                    best = (
+                        Hyp {
+                            depth,
+                            normal: h.normal,
+                            cost,
+                        },
+                        costs,
+                    );
                 }
             }
-            Some(if best.depth > 0.0 {
+            Some(if best.0.depth > 0.0 {
                 best
             } else {
                 self.random_plane(x, y, win)
@@ -1305,13 +1459,14 @@ impl<'a> Solver<'a> {
                 self.cfg.still_normal_deg.to_radians().cos(),
             )
         });
-        let (w, h, half) = (self.width(), self.height(), board.half);
+        let (w, h, half, n) = (self.width(), self.height(), board.half, board.sources);
         let [red, black] = &mut board.cells;
         let (current, other): (&mut Vec<Hyp>, &Vec<Hyp>) = if colour == 0 {
             (red, black)
         } else {
             (black, red)
         };
+        let current_costs = &mut board.costs[colour];
         let seed = self.seed ^ (0x5EED_0000 + (2 * iteration + colour + 1) as u64);
         // Perturbations shrink by half per step (Gipuma's refinement schedule).
         let scale = 0.5f32.powi(step);
@@ -1319,9 +1474,11 @@ impl<'a> Solver<'a> {
         let normal_amount = (0.5 * scale).max(0.02);
         current
             .par_chunks_mut(half)
+            .zip(current_costs.par_chunks_mut(half * n))
             .enumerate()
-            .for_each(|(y, row)| {
+            .for_each(|(y, (row, row_costs))| {
                 for (i, cell) in row.iter_mut().enumerate() {
+                    let stored = &mut row_costs[i * n..(i + 1) * n];
                     let x = 2 * i + ((colour + y) & 1);
                     if x >= w || !self.active[y * w + x] || skip.is_some_and(|s| s[y * w + x]) {
                         continue;
@@ -1380,6 +1537,11 @@ impl<'a> Solver<'a> {
                                 candidates[c] = candidates[e];
                                 matrix[e]
                             }
+                            // The pixel's own plane: its costs are stored, but for the
+                            // sources its last refinement left out.
+                            None if c == 0 && cell.depth > 0.0 => {
+                                self.complete_costs(x, y, depth, &normal, &win, stored)
+                            }
                             None => self.source_costs(x, y, depth, &normal, &win, None),
                         };
                     }
@@ -1388,7 +1550,6 @@ impl<'a> Solver<'a> {
                     } else {
                         None
                     };
-                    let n = self.sources.len();
                     let top_k = self.cfg.top_k;
                     let combine = |mut c: [f32; MAX_SOURCES]| match &weights {
                         Some(wts) => weighted(&c, wts),
@@ -1397,6 +1558,9 @@ impl<'a> Solver<'a> {
                     // Without weights the current cost stands as stored; with them every
                     // candidate, the current one included, is judged under the same weights.
                     let mut best = if weights.is_some() { INVALID } else { *cell };
+                    // The per-source costs of `best` (without weights and no better
+                    // candidate, `best` is the pixel's own plane, candidate 0).
+                    let mut best_costs = matrix[0];
                     for (row, (depth, normal)) in matrix.iter().zip(&candidates[..count]) {
                         let cost = combine(*row);
                         if cost < best.cost {
@@ -1405,6 +1569,7 @@ impl<'a> Solver<'a> {
                                 normal: *normal,
                                 cost,
                             };
+                            best_costs = *row;
                         }
                     }
                     if best.depth <= 0.0 {
@@ -1414,14 +1579,23 @@ impl<'a> Solver<'a> {
                     let mut rng = Rng::for_item(seed, (y * w + x) as u64);
                     let ray = self.problem.k.ray(x as f32, y as f32);
                     let (lo, hi) = self.problem.depth_range;
-                    let random_depth = self.random_depth(&mut rng);
-                    let random_normal = self.random_normal(&mut rng, &ray);
+                    // Planes drawn at random only help while the search is coarse: a finer
+                    // scale or the geometric pass starts from a solution and only perturbs
+                    // (and draws no random plane).
+                    let coarsest = pass == Pass::Coarsest;
+                    let random = coarsest.then(|| {
+                        (
+                            self.random_depth(&mut rng),
+                            self.random_normal(&mut rng, &ray),
+                        )
+                    });
                     let perturbed_depth = (best.depth
                         * (1.0 + depth_amount * (2.0 * rng.uniform() as f32 - 1.0)))
                         .clamp(lo, hi);
                     let perturbed_normal =
                         self.perturb_normal(&mut rng, &best.normal, &ray, normal_amount);
                     let (d0, n0) = (best.depth, best.normal);
+                    let (random_depth, random_normal) = random.unwrap_or((d0, n0));
                     let trials = [
                         (perturbed_depth, n0),
                         (d0, perturbed_normal),
@@ -1430,34 +1604,34 @@ impl<'a> Solver<'a> {
                         (d0, random_normal),
                         (random_depth, random_normal),
                     ];
-                    // Planes drawn at random only help while the search is coarse: a finer
-                    // scale or the geometric pass starts from a solution and only perturbs.
-                    let trials = if pass == Pass::Coarsest {
-                        &trials[..]
-                    } else {
-                        &trials[..3]
-                    };
+                    let trials = if coarsest { &trials[..] } else { &trials[..3] };
                     for &(depth, normal) in trials {
                         if depth <= 0.0 || (depth == best.depth && normal == best.normal) {
                             continue;
                         }
-                        let cost = combine(self.source_costs(
-                            x,
-                            y,
-                            depth,
-                            &normal,
-                            &win,
-                            weights.as_ref(),
-                        ));
+                        let costs = match &weights {
+                            // A trial that cannot beat `best` is dropped as soon as its
+                            // heaviest sources show it.
+                            Some(wts) => match self
+                                .bounded_costs(x, y, depth, &normal, &win, wts, best.cost)
+                            {
+                                Some(c) => c,
+                                None => continue,
+                            },
+                            None => self.source_costs(x, y, depth, &normal, &win, None),
+                        };
+                        let cost = combine(costs);
                         if cost < best.cost {
                             best = Hyp {
                                 depth,
                                 normal,
                                 cost,
                             };
+                            best_costs = costs;
                         }
                     }
                     *cell = best;
+                    stored.copy_from_slice(&best_costs[..n]);
                 }
             });
     }
@@ -1585,12 +1759,12 @@ pub fn patch_match_on(
 ) -> DepthMap {
     let (w, h) = (problem.image.width, problem.image.height);
     if problem.sources.is_empty() {
-        return Board::new(w, h).to_depth_map(cfg.max_cost);
+        return Board::new(w, h, 0).to_depth_map(cfg.max_cost);
     }
     if let Some(prior) = problem.prior {
         // The geometric pass: full resolution, from the first pass's planes.
         let solver = Solver::new(problem, cfg, seed ^ 0x6E0_u64, kernel);
-        let mut board = Board::new(w, h);
+        let mut board = Board::new(w, h, problem.sources.len());
         solver.initialise(Some(prior), &mut board);
         let settled = solver.settled(&board);
         solver.sweeps(&mut board, cfg.geometric_iterations, 4, Some(&settled));
@@ -1643,7 +1817,7 @@ pub fn patch_match_on(
         };
         let level_seed = seed ^ (level as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
         let solver = Solver::new(&lp, cfg, level_seed, kernel);
-        let mut board = Board::new(lp.image.width, lp.image.height);
+        let mut board = Board::new(lp.image.width, lp.image.height, lp.sources.len());
         let coarsest = coarse.is_none();
         let (iterations, first_step) = match &coarse {
             None => {
@@ -1651,7 +1825,7 @@ pub fn patch_match_on(
                 (cfg.iterations, 0)
             }
             Some((c, ck)) => {
-                solver.upsample(c, ck, &mut board);
+                solver.upsample(c, ck, &mut board, level == 0);
                 // Finer scales refine: their perturbations start where the coarse ones ended.
                 let sweeps = if level == 0 {
                     cfg.finest_iterations
