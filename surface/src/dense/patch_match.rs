@@ -985,20 +985,25 @@ impl<'a> Solver<'a> {
         costs
     }
 
-    /// The multi-view cost of hypothesis (`depth`, `normal`) at (`x`, `y`), the mean of the
-    /// `top_k` best sources, and its per-source costs.
-    fn cost(
+    /// Hypothesis (`depth`, `normal`) at (`x`, `y`) with its multi-view cost (the mean of
+    /// the `top_k` best sources), and its per-source costs.
+    fn costed(
         &self,
         x: usize,
         y: usize,
         depth: f32,
-        normal: &[f32; 3],
+        normal: [f32; 3],
         win: &Window,
-    ) -> (f32, [f32; MAX_SOURCES]) {
-        let costs = self.source_costs(x, y, depth, normal, win, None);
+    ) -> (Hyp, [f32; MAX_SOURCES]) {
+        let costs = self.source_costs(x, y, depth, &normal, win, None);
         let mut sorted = costs;
+        let cost = aggregate(&mut sorted[..self.sources.len()], self.cfg.top_k);
         (
-            aggregate(&mut sorted[..self.sources.len()], self.cfg.top_k),
+            Hyp {
+                depth,
+                normal,
+                cost,
+            },
             costs,
         )
     }
@@ -1322,15 +1327,7 @@ impl<'a> Solver<'a> {
         let ray = self.problem.k.ray(x as f32, y as f32);
         let depth = self.random_depth(&mut rng);
         let normal = self.random_normal(&mut rng, &ray);
-        let (cost, costs) = self.cost(x, y, depth, &normal, win);
-        (
-            Hyp {
-                depth,
-                normal,
-                cost,
-            },
-            costs,
-        )
+        self.costed(x, y, depth, normal, win)
     }
 
     /// Planes with their costs at every active pixel: those of `prior`, a previous pass's
@@ -1340,18 +1337,7 @@ impl<'a> Solver<'a> {
         self.fill(board, |x, y, win| {
             let k = y * w + x;
             Some(match prior {
-                Some(p) if p.depth[k] > 0.0 => {
-                    let (depth, normal) = (p.depth[k], p.normal[k]);
-                    let (cost, costs) = self.cost(x, y, depth, &normal, win);
-                    (
-                        Hyp {
-                            depth,
-                            normal,
-                            cost,
-                        },
-                        costs,
-                    )
-                }
+                Some(p) if p.depth[k] > 0.0 => self.costed(x, y, p.depth[k], p.normal[k], win),
                 _ => self.random_plane(x, y, win),
             })
         });
@@ -1421,16 +1407,9 @@ impl<'a> Solver<'a> {
                 }
                 tried[n_tried] = (depth, h.normal);
                 n_tried += 1;
-                let (cost, costs) = self.cost(x, y, depth, &h.normal, win);
-                if cost < best.0.cost {
-                    best = (
-                        Hyp {
-                            depth,
-                            normal: h.normal,
-                            cost,
-                        },
-                        costs,
-                    );
+                let candidate = self.costed(x, y, depth, h.normal, win);
+                if candidate.0.cost < best.0.cost {
+                    best = candidate;
                 }
             }
             Some(if best.0.depth > 0.0 {
