@@ -188,7 +188,7 @@ fn main() {
                 "  {h} {name:8} psnr {:.2} gain-fitted {:.2} ssim {:.4} 1-ncc {:.5} px {}",
                 c.psnr, c.psnr_gain, c.ssim_gain, c.one_minus_ncc, c.pixels
             );
-            if std::env::var("DIAG").is_ok() && name == "texture" {
+            if std::env::var("DIAG").is_ok() {
                 diagnose(&r, &photo, &cm, &c.gains, &m.mesh);
             }
             if std::env::var("SAVE").is_ok() && name == "texture" {
