@@ -41,12 +41,17 @@ pub struct FeaturesArgs {
     /// Do not up-sample photos 2x before the first octave (faster, fewer small features).
     #[arg(long)]
     pub no_upsample: bool,
-    /// Drop keypoints on the object's outline when the photos have a plain background, except
-    /// on sharp corners of the outline (for a smooth object on a plain backdrop: its outline
-    /// is an occluding contour, which biases the poses; see
+    /// Drop keypoints on the object's outline in every photo with a plain background, except
+    /// on sharp corners of the outline, whatever the outline (by default only photos whose
+    /// outline is smooth, an occluding contour that biases the poses, lose them; see
     /// sfm/src/features/plain_background.rs).
     #[arg(long)]
     pub drop_outline: bool,
+    /// Keep the outline's keypoints even where the outline is smooth (by default a photo's
+    /// outline keypoints are dropped when at least 2/3 of them lie on smooth stretches, the
+    /// occluding contour of a smooth object; see sfm/src/features/plain_background.rs).
+    #[arg(long, conflicts_with = "drop_outline")]
+    pub keep_outline: bool,
     /// Smallest DoG contrast of a keypoint, times the intervals per octave, for grey in
     /// [0, 1] (OpenCV's contrastThreshold; COLMAP's peak_threshold times 3).
     #[arg(long, default_value_t = DetectorConfig::default().contrast_threshold)]
@@ -87,6 +92,7 @@ pub fn features_config(args: &FeaturesArgs) -> FeaturesConfig {
     };
     sift.scale_space.upsample = !args.no_upsample;
     sift.plain_background.enabled = args.drop_outline;
+    sift.plain_background.drop_on_smooth_outline = !args.keep_outline;
     sift.detector.contrast_threshold = args.contrast_threshold;
     FeaturesConfig {
         sift,

@@ -39,6 +39,10 @@ pub struct ReconstructArgs {
     /// features --drop-outline`).
     #[arg(long)]
     pub drop_outline: bool,
+    /// Keep the outline's keypoints even where the outline is smooth (see `fresco features
+    /// --keep-outline`).
+    #[arg(long, conflicts_with = "drop_outline")]
+    pub keep_outline: bool,
 }
 
 pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -59,6 +63,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             rootsift: sift.root_sift,
             no_upsample: !sift.scale_space.upsample,
             drop_outline: args.drop_outline || sift.plain_background.enabled,
+            keep_outline: args.keep_outline || !sift.plain_background.drop_on_smooth_outline,
             contrast_threshold: sift.detector.contrast_threshold,
             camera_model: args.camera_model.clone(),
             focal_file: args.focal_file.clone(),

@@ -113,13 +113,16 @@ fn warp_bilinear(
 /// All keypoints (no limit, like OpenCV's default) at OpenCV's contrast threshold, in
 /// OpenCV's coordinates.
 fn detect(img: &[u8], w: usize, h: usize) -> (Vec<(f64, f64)>, Features) {
-    let config = SiftConfig {
+    let mut config = SiftConfig {
         max_features: 0,
         // OpenCV's detector has one fixed threshold: no adaptive detection.
         min_features_per_megapixel: 0,
         detector: DetectorConfig::opencv(),
         ..Default::default()
     };
+    // OpenCV keeps keypoints on an outline against a black background (the warped images'
+    // black margins): so does the comparison.
+    config.plain_background.drop_on_smooth_outline = false;
     let f = extract_features(&to_grey(img, w, h), &config);
     let pts = f
         .keypoints

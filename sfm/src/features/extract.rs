@@ -125,8 +125,20 @@ pub struct ExtractionReport {
     /// Keypoint locations wanted for this photo's size (0: no target).
     pub target: usize,
     /// DoG extrema dropped because their blob touches a plain background (at the final
-    /// threshold; 0 when the photo has no plain background).
+    /// threshold; 0 when the photo has no plain background, or when its outline is not
+    /// smooth and `--drop-outline` is off: see `plain_background.rs`).
     pub outline_dropped: usize,
+}
+
+/// True when at least `min_smooth_fraction` of a photo's outline keypoints (`on_outline`: per
+/// keypoint None off the outline, else whether the outline bends into a corner there) lie on
+/// smooth stretches of the outline, and there is at least one: the outline is then an
+/// occluding contour of a smooth surface, not made of the object's own edges and corners
+/// (see `plain_background.rs`).
+fn outline_is_smooth(on_outline: &[Option<bool>], min_smooth_fraction: f32) -> bool {
+    let outline = on_outline.iter().flatten().count();
+    let smooth = on_outline.iter().filter(|c| **c == Some(false)).count();
+    smooth > 0 && smooth as f32 >= min_smooth_fraction * outline as f32
 }
 
 /// A keypoint with its float descriptor and the rank of its location by response (0 strongest).
@@ -181,26 +193,37 @@ pub fn extract_features_reporting(
     let space = build_scale_space(work, &config.scale_space);
     report.target = keypoint_target(work.width, work.height, config);
     let pb = &config.plain_background;
-    let background = if pb.enabled {
+    let background = if pb.enabled || pb.drop_on_smooth_outline {
         plain_background(work, pb)
     } else {
         None
     };
-    // DoG extrema off the outline (or on a corner of it), and how many were dropped.
+    // DoG extrema off the outline (or on a corner of it) when the outline's keypoints are to
+    // be dropped, and how many were dropped.
     let detect = |detector: &DetectorConfig| {
         let mut extrema = detect_extrema(&space, detector);
         let before = extrema.len();
         if let Some(mask) = &background {
-            extrema.retain(|e| {
-                let octave = &space.octaves[e.octave];
-                // Work-image pixel indices (the offset is the COLMAP-convention position).
-                let x = octave.step * e.x + octave.offset - 0.5;
-                let y = octave.step * e.y + octave.offset - 0.5;
-                let radius = pb.blob_radius_sigmas * e.sigma_octave * octave.step + pb.edge_px;
-                !touches_background(mask, work.width, x, y, radius)
-                    || boundary_bend(mask, work.width, x, y, radius)
-                        .is_some_and(|b| b >= pb.corner_min_bend)
-            });
+            // Per extremum: off the outline (None), on a corner of it (Some(true)) or on a
+            // smooth stretch (Some(false)).
+            let on_outline: Vec<Option<bool>> = extrema
+                .iter()
+                .map(|e| {
+                    let octave = &space.octaves[e.octave];
+                    // Work-image pixel indices (the offset is the COLMAP-convention position).
+                    let x = octave.step * e.x + octave.offset - 0.5;
+                    let y = octave.step * e.y + octave.offset - 0.5;
+                    let radius = pb.blob_radius_sigmas * e.sigma_octave * octave.step + pb.edge_px;
+                    touches_background(mask, work.width, x, y, radius).then(|| {
+                        boundary_bend(mask, work.width, x, y, radius)
+                            .is_some_and(|b| b >= pb.corner_min_bend)
+                    })
+                })
+                .collect();
+            if pb.enabled || outline_is_smooth(&on_outline, pb.min_smooth_fraction) {
+                let mut keep = on_outline.iter().map(|c| *c != Some(false));
+                extrema.retain(|_| keep.next().unwrap_or(true));
+            }
         }
         let dropped = before - extrema.len();
         (extrema, dropped)
@@ -393,5 +416,77 @@ mod tests {
         // Too small: nothing, no panic.
         assert!(extract_features(&GreyImage::new(10, 10), &SiftConfig::default()).is_empty());
         assert!(extract_features(&GreyImage::new(0, 0), &SiftConfig::default()).is_empty());
+    }
+}
+
+#[cfg(test)]
+mod outline_tests {
+    use super::*;
+
+    /// A textured object (`inside`) on a black, noiseless background.
+    fn object_on_black(w: usize, h: usize, inside: impl Fn(f32, f32) -> bool) -> GreyImage {
+        let mut g = GreyImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let (fx, fy) = (x as f32, y as f32);
+                if inside(fx, fy) {
+                    g.data[y * w + x] =
+                        0.5 + 0.3 * (fx * 0.45).sin() * (fy * 0.35).cos() + 0.1 * (fx * 0.13).cos();
+                }
+            }
+        }
+        g
+    }
+
+    fn with_outline(drop_on_smooth_outline: bool, enabled: bool) -> SiftConfig {
+        let mut c = SiftConfig::default();
+        c.plain_background.drop_on_smooth_outline = drop_on_smooth_outline;
+        c.plain_background.enabled = enabled;
+        c
+    }
+
+    fn positions(f: &Features) -> Vec<(f32, f32, f32)> {
+        f.keypoints.iter().map(|k| (k.x, k.y, k.scale)).collect()
+    }
+
+    /// A smooth outline (a disc: an occluding contour) has its outline keypoints dropped by
+    /// default, as `--drop-outline` does; an outline made of corners (a saw-toothed square,
+    /// teeth every 8 px) keeps every keypoint by default, exactly as with the test off.
+    #[test]
+    fn smooth_outlines_lose_their_keypoints_sharp_ones_keep_them() {
+        let (w, h) = (160, 120);
+        let disc = object_on_black(w, h, |x, y| (x - 80.0).hypot(y - 60.0) < 45.0);
+        let default = extract_features_reporting(&disc, &SiftConfig::default());
+        let dropped = extract_features_reporting(&disc, &with_outline(false, true));
+        let kept = extract_features_reporting(&disc, &with_outline(false, false));
+        assert!(default.1.outline_dropped > 0, "{:?}", default.1);
+        assert_eq!(default.1, dropped.1);
+        assert_eq!(positions(&default.0), positions(&dropped.0));
+        assert_ne!(positions(&default.0), positions(&kept.0));
+
+        let tooth = |t: f32| (t.rem_euclid(8.0) - 4.0).abs() * 1.5; // 0..6 px
+        let saw = object_on_black(w, h, |x, y| {
+            let (dx, dy) = ((x - 80.0).abs(), (y - 60.0).abs());
+            dx < 45.0 - tooth(y) && dy < 40.0 - tooth(x)
+        });
+        let default = extract_features_reporting(&saw, &SiftConfig::default());
+        let kept = extract_features_reporting(&saw, &with_outline(false, false));
+        assert_eq!(default.1.outline_dropped, 0);
+        assert_eq!(positions(&default.0), positions(&kept.0));
+        // Not for want of outline keypoints: dropping corners too removes some.
+        let mut all_dropped = with_outline(false, true);
+        all_dropped.plain_background.corner_min_bend = 2.0;
+        let all_dropped = extract_features_reporting(&saw, &all_dropped);
+        assert!(all_dropped.1.outline_dropped > 0, "{:?}", all_dropped.1);
+    }
+
+    /// The gate's arithmetic: at least the fraction, and at least one smooth keypoint.
+    #[test]
+    fn outline_is_smooth_counts_outline_keypoints_only() {
+        let (s, c) = (Some(false), Some(true));
+        assert!(outline_is_smooth(&[s, s, c, None, None], 2.0 / 3.0));
+        assert!(!outline_is_smooth(&[s, c, c, None, None, None], 2.0 / 3.0));
+        assert!(!outline_is_smooth(&[None, None], 2.0 / 3.0));
+        assert!(!outline_is_smooth(&[c, c], 0.0));
     }
 }
