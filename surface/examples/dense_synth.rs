@@ -2,13 +2,15 @@
 //! cloud against its ground-truth mesh (the figures of issue 13).
 //!
 //! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
-//! [--eval-only] [key=value ...]` (keys: max_image_size, geometric, scales, iterations,
-//! fine_iterations, finest_iterations, geometric_iterations, settled_px, still_depth, still_normal_deg, adaptive_views, top_k, max_sources, min_views,
-//! support_plane)
+//! [--eval-only] [key=value ...]` (keys: `shared/dense_keys.rs`)
+
+#[path = "shared/dense_keys.rs"]
+mod dense_keys;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dense_keys::set_dense_key;
 use fresco_core::ply::{PlyReader, read_mesh};
 use fresco_core::{NoProgress, colmap};
 use fresco_surface::dense::{
@@ -32,25 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut config = DenseConfig::default();
     for kv in args[3..].iter().filter(|a| !a.starts_with("--")) {
         let (k, v) = kv.split_once('=').ok_or("key=value")?;
-        let pm = &mut config.patch_match;
-        match k {
-            "max_image_size" => config.max_image_size = v.parse()?,
-            "geometric" => config.geometric = v.parse()?,
-            "scales" => pm.scales = v.parse()?,
-            "iterations" => pm.iterations = v.parse()?,
-            "fine_iterations" => pm.fine_iterations = v.parse()?,
-            "finest_iterations" => pm.finest_iterations = v.parse()?,
-            "geometric_iterations" => pm.geometric_iterations = v.parse()?,
-            "settled_px" => pm.settled_px = v.parse()?,
-            "still_depth" => pm.still_depth = v.parse()?,
-            "still_normal_deg" => pm.still_normal_deg = v.parse()?,
-            "adaptive_views" => pm.adaptive_views = v.parse()?,
-            "top_k" => pm.top_k = v.parse()?,
-            "max_sources" => config.view_selection.max_sources = v.parse()?,
-            "min_views" => config.fusion.min_views = v.parse()?,
-            "support_plane" => config.fusion.support_plane.remove = v.parse()?,
-            _ => return Err(format!("unknown key {k}").into()),
-        }
+        set_dense_key(&mut config, k, v)?;
     }
     let t = Instant::now();
     if !eval_only {

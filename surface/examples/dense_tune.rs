@@ -3,43 +3,32 @@
 //!
 //! `cargo run -p fresco-surface --example dense_tune -- <dataset> <dense dir> <view> [key=value ...]`
 
+#[path = "shared/dense_keys.rs"]
+mod dense_keys;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dense_keys::set_dense_key;
 use fresco_core::colmap;
 use fresco_core::photo::load_photo;
 use fresco_core::ply::read_mesh;
 use fresco_core::raster::{self, RasterConfig, SampleMap};
-use fresco_surface::dense::patch_match::{
-    Intrinsics, PatchMatchConfig, Problem, Source, patch_match,
-};
-use fresco_surface::dense::view_selection::{ViewSelectionConfig, select_views};
-use fresco_surface::dense::{DenseLayout, DenseView};
+use fresco_surface::dense::patch_match::{Intrinsics, Problem, Source, patch_match};
+use fresco_surface::dense::view_selection::select_views;
+use fresco_surface::dense::{DenseConfig, DenseLayout, DenseView};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let dataset = PathBuf::from(&args[1]);
     let dense = PathBuf::from(&args[2]);
     let r: usize = args[3].parse()?;
-    let mut cfg = PatchMatchConfig::default();
-    let mut vs = ViewSelectionConfig::default();
+    let mut config = DenseConfig::default();
     for kv in &args[4..] {
         let (k, v) = kv.split_once('=').ok_or("key=value")?;
-        match k {
-            "window_radius" => cfg.window_radius = v.parse()?,
-            "window_step" => cfg.window_step = v.parse()?,
-            "sigma_color" => cfg.sigma_color = v.parse()?,
-            "sigma_spatial" => cfg.sigma_spatial = v.parse()?,
-            "iterations" => cfg.iterations = v.parse()?,
-            "fine_iterations" => cfg.fine_iterations = v.parse()?,
-            "scales" => cfg.scales = v.parse()?,
-            "top_k" => cfg.top_k = v.parse()?,
-            "adaptive_views" => cfg.adaptive_views = v.parse()?,
-            "max_cost" => cfg.max_cost = v.parse()?,
-            "max_sources" => vs.max_sources = v.parse()?,
-            _ => return Err(format!("unknown key {k}").into()),
-        }
+        set_dense_key(&mut config, k, v)?;
     }
+    let (cfg, vs) = (&config.patch_match, &config.view_selection);
     let mesh = read_mesh(dataset.join("mesh.ply"))?;
     let rec = colmap::read_model(&dense.join("sparse"))?;
     let layout = DenseLayout::new(&dense);
@@ -53,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             cam_from_world: im.cam_from_world,
         })
         .collect();
-    let choices = select_views(&views, &rec, &vs);
+    let choices = select_views(&views, &rec, vs);
     let choice = &choices[r];
     let grey = |v: usize| load_photo(&layout.image(&views[v].name)).map(|p| p.grey);
     let reference = grey(r)?;
@@ -83,7 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         prior: None,
     };
     let t = Instant::now();
-    let map = patch_match(&problem, &cfg, 1);
+    let map = patch_match(&problem, cfg, 1);
     let secs = t.elapsed().as_secs_f64();
     let sm = SampleMap::new(&view.camera, 1)?;
     let vis = raster::visibility(&mesh, &sm, &view.cam_from_world, &RasterConfig::default())?;

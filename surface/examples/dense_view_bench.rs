@@ -2,15 +2,18 @@
 //! and photometric maps), for profiling the dense stage without running it whole.
 //!
 //! `cargo run --release -p fresco-surface --example dense_view_bench -- <dense dir> <image
-//! name> <photometric|geometric|both> [out dir] [key=value ...]` (keys: iterations,
-//! fine_iterations, finest_iterations, geometric_iterations, settled_px, still_depth,
-//! still_normal_deg, scales). The geometric pass reads the workspace's photometric maps (of
+//! name> <photometric|geometric|both> [out dir] [key=value ...]` (keys:
+//! `shared/dense_keys.rs`). The geometric pass reads the workspace's photometric maps (of
 //! the view and its sources). With an out dir, the maps are written there as
 //! `<name>.<pass>.bin` (depth, normal, cost in `depth_maps/`, `normal_maps/`, `cost_maps/`).
+
+#[path = "shared/dense_keys.rs"]
+mod dense_keys;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dense_keys::set_dense_key;
 use fresco_core::photo::load_photo;
 use fresco_core::{Rng, colmap};
 use fresco_surface::dense::patch_match::{Intrinsics, Problem, Source, patch_match};
@@ -31,18 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut config = DenseConfig::default();
     for kv in rest.iter().filter(|a| a.contains('=')) {
         let (k, v) = kv.split_once('=').ok_or("key=value")?;
-        let pm = &mut config.patch_match;
-        match k {
-            "scales" => pm.scales = v.parse()?,
-            "iterations" => pm.iterations = v.parse()?,
-            "fine_iterations" => pm.fine_iterations = v.parse()?,
-            "finest_iterations" => pm.finest_iterations = v.parse()?,
-            "geometric_iterations" => pm.geometric_iterations = v.parse()?,
-            "settled_px" => pm.settled_px = v.parse()?,
-            "still_depth" => pm.still_depth = v.parse()?,
-            "still_normal_deg" => pm.still_normal_deg = v.parse()?,
-            _ => return Err(format!("unknown key {k}").into()),
-        }
+        set_dense_key(&mut config, k, v)?;
     }
     println!("{:?}", config.patch_match);
     let view = summary["views"]

@@ -1910,6 +1910,34 @@ mod tests {
         world_from_cam.inverse()
     }
 
+    /// The plane scene's problem: the reference view `reference` with its image, and each
+    /// source camera with its image and, for a geometric pass, its depth map; all with
+    /// intrinsics `k`, depths drawn from [1, 4].
+    fn plane_problem<'a>(
+        ref_img: &'a GreyImage,
+        k: Intrinsics,
+        reference: &Rigid3,
+        sources: impl IntoIterator<Item = (&'a Rigid3, &'a GreyImage, Option<&'a DepthMap>)>,
+        prior: Option<&'a DepthMap>,
+    ) -> Problem<'a> {
+        Problem {
+            image: ref_img,
+            k,
+            sources: sources
+                .into_iter()
+                .map(|(c, image, depth)| Source {
+                    image,
+                    k,
+                    src_from_ref: *c * reference.inverse(),
+                    depth,
+                })
+                .collect(),
+            depth_range: (1.0, 4.0),
+            mask: None,
+            prior,
+        }
+    }
+
     #[test]
     fn stacked_rows_hold_each_pixel_and_the_one_below() {
         let (w, h) = (7, 5);
@@ -1958,23 +1986,8 @@ mod tests {
         ];
         let ref_img = render(&k, w, h, &reference);
         let imgs: Vec<GreyImage> = cams.iter().map(|c| render(&k, w, h, c)).collect();
-        let problem = Problem {
-            image: &ref_img,
-            k,
-            sources: cams
-                .iter()
-                .zip(&imgs)
-                .map(|(c, img)| Source {
-                    image: img,
-                    k,
-                    src_from_ref: *c * reference.inverse(),
-                    depth: None,
-                })
-                .collect(),
-            depth_range: (1.0, 4.0),
-            mask: None,
-            prior: None,
-        };
+        let sources = cams.iter().zip(&imgs).map(|(c, img)| (c, img, None));
+        let problem = plane_problem(&ref_img, k, &reference, sources, None);
         let cfg = PatchMatchConfig::default();
         let fast = Solver::new(&problem, &cfg, 3, Kernel::Fastest);
         let portable = Solver::new(&problem, &cfg, 3, Kernel::Portable);
@@ -2032,23 +2045,8 @@ mod tests {
             .collect();
         let ref_img = render(&k, w, h, &reference);
         let src_imgs: Vec<GreyImage> = sources.iter().map(|p| render(&k, w, h, p)).collect();
-        let problem = Problem {
-            image: &ref_img,
-            k,
-            sources: sources
-                .iter()
-                .zip(&src_imgs)
-                .map(|(p, img)| Source {
-                    image: img,
-                    k,
-                    src_from_ref: *p * reference.inverse(),
-                    depth: None,
-                })
-                .collect(),
-            depth_range: (1.0, 4.0),
-            mask: None,
-            prior: None,
-        };
+        let views = sources.iter().zip(&src_imgs).map(|(p, img)| (p, img, None));
+        let problem = plane_problem(&ref_img, k, &reference, views, None);
         let cfg = PatchMatchConfig::default();
         let map = patch_match(&problem, &cfg, 7);
         // Ground truth: the depth of the plane z = 0 along each ray.
@@ -2132,24 +2130,12 @@ mod tests {
                 }
             }
         }
-        let problem = Problem {
-            image: &ref_img,
-            k,
-            sources: sources
-                .iter()
-                .zip(&src_imgs)
-                .zip(&src_maps)
-                .map(|((p, img), map)| Source {
-                    image: img,
-                    k,
-                    src_from_ref: *p * reference.inverse(),
-                    depth: Some(map),
-                })
-                .collect(),
-            depth_range: (1.0, 4.0),
-            mask: None,
-            prior: Some(&prior),
-        };
+        let views = sources
+            .iter()
+            .zip(&src_imgs)
+            .zip(&src_maps)
+            .map(|((p, img), map)| (p, img, Some(map)));
+        let problem = plane_problem(&ref_img, k, &reference, views, Some(&prior));
         let cfg = PatchMatchConfig::default();
         let map = patch_match(&problem, &cfg, 5);
         let (mut kept, mut right, mut mended, mut wrong_total) = (0, 0, 0, 0);
@@ -2196,19 +2182,7 @@ mod tests {
         let source = camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2);
         let ref_img = render(&k, w, h, &reference);
         let src_img = render(&k, w, h, &source);
-        let problem = Problem {
-            image: &ref_img,
-            k,
-            sources: vec![Source {
-                image: &src_img,
-                k,
-                src_from_ref: source * reference.inverse(),
-                depth: None,
-            }],
-            depth_range: (1.0, 4.0),
-            mask: None,
-            prior: None,
-        };
+        let problem = plane_problem(&ref_img, k, &reference, [(&source, &src_img, None)], None);
         let cfg = PatchMatchConfig {
             iterations: 2,
             ..Default::default()
@@ -2254,21 +2228,8 @@ mod tests {
                 .iter()
                 .zip(&imgs)
                 .zip(&maps)
-                .map(|((c, img), map)| Source {
-                    image: img,
-                    k,
-                    src_from_ref: *c * reference.inverse(),
-                    depth: geometric.then_some(map),
-                })
-                .collect();
-            let p = Problem {
-                image: &ref_img,
-                k,
-                sources,
-                depth_range: (1.0, 4.0),
-                mask: None,
-                prior,
-            };
+                .map(|((c, img), map)| (c, img, geometric.then_some(map)));
+            let p = plane_problem(&ref_img, k, &reference, sources, prior);
             let fast = patch_match_on(&p, &cfg, 5, Kernel::Fastest);
             let portable = patch_match_on(&p, &cfg, 5, Kernel::Portable);
             assert_eq!(fast, portable);
