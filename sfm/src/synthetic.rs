@@ -25,6 +25,10 @@ pub struct SyntheticConfig {
     pub height: u32,
     /// One camera shared by all images (true) or one per image.
     pub shared_camera: bool,
+    /// Distance of the cameras from the origin (each up to 10% farther). Default: `5.0`
+    /// (a wide field of view for the default focal length); a narrow ring puts them farther
+    /// with a longer focal length.
+    pub camera_distance: f64,
     pub seed: u64,
 }
 
@@ -41,6 +45,7 @@ impl Default for SyntheticConfig {
             width: 640,
             height: 480,
             shared_camera: true,
+            camera_distance: 5.0,
             seed: 1,
         }
     }
@@ -89,10 +94,11 @@ pub fn synthetic_reconstruction(config: &SyntheticConfig) -> (Reconstruction, Ve
         );
     }
     for i in 0..config.cameras {
-        // A band of elevations 15..45 degrees, evenly spread in azimuth, radius 5.
+        // A band of elevations 15..45 degrees, evenly spread in azimuth, at the configured
+        // distance (+0-10%), every optical axis through the origin.
         let azimuth = 2.0 * std::f64::consts::PI * i as f64 / config.cameras as f64;
         let elevation = (15.0 + 30.0 * rng.uniform()).to_radians();
-        let radius = 5.0 + 0.5 * rng.uniform();
+        let radius = config.camera_distance + 0.1 * config.camera_distance * rng.uniform();
         let centre = radius
             * Vector3::new(
                 elevation.cos() * azimuth.cos(),

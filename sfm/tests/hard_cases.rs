@@ -126,12 +126,22 @@ fn weak_texture_on_dark_background() {
 /// aims every view at the object's centre from about the same distance, the configuration in
 /// which a fundamental matrix says nothing about the focal length (`focal_from_f.rs`): no pair
 /// is well conditioned, the default stays the prior and bundle adjustment finds 1377 px against
-/// 1536 (10.3% off; 2% asked; 14% with the outline kept). Not noise: the adjustment's own
-/// standard deviation of f (`SfmSummary::intrinsics_std`, from its normal equations) is 32 px,
-/// 2.1%, so the error is 5 standard deviations (8 with the outline kept); and even unbiased, a
-/// 2.1% standard deviation meets a 2% bound only about two times in three. At 640x480 the
-/// standard deviation is 25 px of 3072 (0.8%) and the error 5.4% (7 standard deviations): a
-/// bias remains at both sizes. The rotations are within 0.5 degrees (max 0.395).
+/// 1536 (10.3% off; 2% asked; 14% with the outline kept); the adjustment's own standard
+/// deviation of f is 32 px (2.1%). The rotations are within 0.5 degrees (max 0.395).
+/// Why the 2% line is not met (session 11, figures in the notes): the mapper and adjustment
+/// are not the cause: on this ring's own tracks with the keypoints moved to their true
+/// projections plus 0.3 px of Gaussian noise the focal length comes out unbiased (+0.6% +-
+/// 1.1% over 10 seeds), but its spread is 3.4% (the adjustment's covariance says 2.6%): at
+/// 320x240 a 12-degree fixating ring does not determine f to 2% even from unbiased keypoints
+/// (5 of 10 seeds within 2%). Re-aiming the views (axes no longer meeting) halves the spread
+/// (1.6%). At 640x480 the spread is 0.95% and the real keypoints' error 5.4% is a bias in the
+/// keypoints of the object's interior (not the outline, not internal occluding contours, not
+/// a zoom or an offset between octaves): their residuals about the true cameras'
+/// triangulation (0.56 px rms) give -5.4% as they are, +5.9% negated and +0.0% +- 0.6% dealt
+/// at random among the observations, so each feature's image position moves with the view in
+/// a way no fixed 3D point explains; its mechanism is not identified.
+/// COLMAP on the same photos (`datasets/reference/colmap_hard_focal.py`, pycolmap 4.2.1):
+/// 4 of 16 registered and 38.8% off at 320x240, 16 of 16 in two models and 11.1% off at 640x480.
 #[test]
 fn no_exif_focal_four_times_the_prior() {
     let (sfm, e, _) = reconstruct(&scene(|c| c.focal = Some(4.0 * 384.0)), |_| {});
@@ -233,7 +243,7 @@ fn weak_texture_on_dark_background_at_640x480() {
 }
 
 #[test]
-#[ignore = "640x480 measurement (heavy); focal 5.4% off, not met (see the 4x case above)"]
+#[ignore = "640x480 measurement (heavy); focal 5.4% off, not met: a bias of the keypoints (see the 4x case above)"]
 fn no_exif_focal_four_times_the_prior_at_640x480() {
     let (sfm, e, _) = reconstruct(&scene_at(640, 480, |c| c.focal = Some(4.0 * 768.0)), |_| {});
     assert_one_accurate_model(&sfm, &e);
