@@ -1,20 +1,32 @@
 //! Measuring geometric texture on any mesh (how the resizing is judged, DESIGN.md: "size of
 //! the geometric texture features before and after, error of the base shape"):
 //!
-//! - [`feature_sizes`]: per texture region, from the displacement over its faired base
-//!   (fairing.rs): the dominant period of the displacement along each axis (thread pitch,
-//!   bump spacing) by a periodogram of the vertices on lines parallel to the axis, and the
-//!   radius of its raised elements along each axis (bumps, scales, crests): found as the
-//!   connected parts above half the region's height, each measured at half its own height
-//!   above its col (the saddle to its nearest neighbour), radius `2σ` of the
-//!   height-weighted spread of its vertices (exact for a flat disc, and a fixed fraction
-//!   of the radius for any one profile, so that sizes before and after resizing compare;
-//!   the col makes identical elements read alike wherever the faired base lies under
-//!   them, see [`raised_elements`]).
+//! - The texture is read as heights over a base surface ([`texture_over`]): each vertex's
+//!   signed distance to the base ([`heights_over_surface`]; eq. 5's displacement without
+//!   needing the vertices to correspond), less the heights' trend (their local mean over
+//!   the region at the synthesis' trend scale, the part of the displacement that the
+//!   method carries over as base instead of re-synthesising it). A resize is judged with
+//!   **one base on both sides**: the input over its faired base, the output over that same
+//!   surface carried through the resize's own deformation (resize.rs), the trend taken
+//!   with the same kernel at the positions the vertices have on the input. Re-fairing the
+//!   output instead would measure it over another surface: the volume-keeping membrane
+//!   (eqs. 2-4) does not commute with a stretch (on the scaly blob's curved cap the two
+//!   differ by 0.027 RMS, the scales' own height, and a uniform 2x stretch read 1.20x).
+//! - [`feature_sizes_of`]: per texture region, from that field: the dominant period along
+//!   each axis (thread pitch, bump spacing) by a periodogram of the vertices on lines
+//!   parallel to the axis, and the radius of its raised elements along each axis (bumps,
+//!   scales, crests): found as the connected parts above half the region's height, each
+//!   measured at half its own height above its col (the saddle to its nearest neighbour),
+//!   radius `2σ` of the spread of its vertices weighted by height and by the base's area
+//!   (exact for a flat disc, and a fixed fraction of the radius for any one profile, so
+//!   that sizes before and after resizing compare; the col makes identical elements read
+//!   alike wherever the base lies under them, see [`raised_elements`]).
+//! - [`feature_sizes`]: the same on a mesh alone, over its own faired base (fairing.rs).
 //! - [`surface_distance`]: symmetric point-to-surface distance between two meshes (each
 //!   vertex to the other's nearest triangle among those around its nearest vertices).
 
 use fresco_core::Mesh;
+use fresco_core::closest_point::closest_on_triangle;
 use fresco_core::knn::PointIndex3;
 use fresco_core::nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -22,6 +34,7 @@ use rayon::prelude::*;
 use crate::GeotexError;
 use crate::fairing::{FairingConfig, extract};
 use crate::graph::{VertexGraph, prepare};
+use crate::synthesis::{Surface, SynthesisConfig, template_spacing, trend, trend_sigma};
 
 /// Feature sizes of one texture region.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
@@ -36,7 +49,7 @@ pub struct RegionFeatures {
     pub element_radius: [Option<f64>; 3],
     /// Raised elements found (connected parts above half height, three vertices or more).
     pub elements: usize,
-    /// RMS of the displacement over the region.
+    /// RMS over the region of the displacement less its trend ([`TextureField::detail`]).
     pub displacement_rms: f64,
 }
 
@@ -47,7 +60,8 @@ pub struct FeatureSizes {
 }
 
 /// Fairs the texture regions of `mesh` (`labels`: 0 base, `k` region `k`) and measures
-/// them (module docs).
+/// them over that faired base (module docs), their trend taken at the default synthesis'
+/// scale; returns the faired base too.
 pub fn feature_sizes(
     mesh: &Mesh,
     labels: &[u32],
@@ -55,23 +69,96 @@ pub fn feature_sizes(
 ) -> Result<(FeatureSizes, Vec<Point3<f64>>), GeotexError> {
     let (_, graph) = prepare(mesh)?;
     let ex = extract(mesh, &graph, labels, fairing)?;
+    let base = Mesh::from_triangles(ex.base, mesh.faces.clone());
+    let sigmas = trend_scales(&base, labels, &SynthesisConfig::default());
+    let field = texture_over(mesh, labels, &base, &mesh.positions, &sigmas)?;
     Ok((
-        feature_sizes_of(mesh, &graph, labels, &ex.displacement),
-        ex.base,
+        feature_sizes_of(mesh, &graph, labels, &field),
+        base.positions,
     ))
 }
 
-/// [`feature_sizes`] with the displacement already known.
+/// The scale of each texture region's trend (the synthesis', `synthesis::trend_sigma`) from the
+/// triangles of `base` (the input's faired base, as the synthesis takes it), region `r` at
+/// index `r - 1`.
+pub fn trend_scales(base: &Mesh, labels: &[u32], synthesis: &SynthesisConfig) -> Vec<f64> {
+    let normals = vec![Vector3::zeros(); base.positions.len()];
+    let surface = Surface::new(&base.faces, &base.positions, &normals);
+    let regions = labels.iter().copied().max().unwrap_or(0);
+    (1..=regions)
+        .map(|r| {
+            let in_region: Vec<bool> = labels.iter().map(|&l| l == r).collect();
+            trend_sigma(synthesis, template_spacing(&surface, &in_region))
+        })
+        .collect()
+}
+
+/// What the measure reads of a mesh's texture: per vertex, its height over a base surface
+/// less the height's trend, and the base's area around it.
+#[derive(Clone, Debug, Default)]
+pub struct TextureField {
+    /// Height over the base ([`heights_over_surface`]) less its trend in each region.
+    pub detail: Vec<f64>,
+    /// Area of the base around each vertex (a third of its faces' at the vertices' feet):
+    /// a vertex's weight in an element's spread. The textured mesh's own area would
+    /// weigh an element's flanks by their slope, which a stretch changes along the
+    /// stretch only (uniform 2x read the bumpy box's bumps 1.975x along x with it, 2.000x
+    /// with this).
+    pub area: Vec<f64>,
+}
+
+/// The texture of `mesh` over the surface `base` (`labels`: 0 base, `k` region `k`): its
+/// heights over `base` less their trend in each region `r`, the region's local mean at
+/// scale `sigmas[r - 1]` (0 for none; the synthesis' normalised convolution, `synthesis::trend`),
+/// taken over the mesh's faces at `rest`, the positions its vertices have on the input
+/// (the input's own positions for the input): the same kernel on the input and on an
+/// output of it, whatever the output's deformation (module docs).
+pub fn texture_over(
+    mesh: &Mesh,
+    labels: &[u32],
+    base: &Mesh,
+    rest: &[Point3<f64>],
+    sigmas: &[f64],
+) -> Result<TextureField, GeotexError> {
+    let (heights, feet) = heights_over_surface(mesh, base)?;
+    let normals = vec![Vector3::zeros(); rest.len()];
+    let surface = Surface::new(&mesh.faces, rest, &normals);
+    let mut detail = heights;
+    let mut pattern = None;
+    for (r, &sigma) in (1u32..).zip(sigmas) {
+        if sigma <= 0.0 {
+            continue;
+        }
+        let in_region: Vec<bool> = labels.iter().map(|&l| l == r).collect();
+        let mean = trend(&surface, &detail, &in_region, sigma, &mut pattern)?;
+        for v in 0..detail.len() {
+            if in_region[v] {
+                detail[v] -= mean[v];
+            }
+        }
+    }
+    let mut area = vec![0.0; mesh.positions.len()];
+    for face in &mesh.faces {
+        let [a, b, c] = face.map(|v| feet[v as usize]);
+        let third = (b - a).cross(&(c - a)).norm() / 6.0;
+        for &v in face {
+            area[v as usize] += third;
+        }
+    }
+    Ok(TextureField { detail, area })
+}
+
+/// Feature sizes of every texture region of `mesh` from its texture field (module docs).
 pub fn feature_sizes_of(
     mesh: &Mesh,
     graph: &VertexGraph,
     labels: &[u32],
-    displacement: &[f64],
+    field: &TextureField,
 ) -> FeatureSizes {
     let count = labels.iter().copied().max().unwrap_or(0);
     let regions = (1..=count)
         .into_par_iter()
-        .map(|r| region_features(mesh, graph, labels, displacement, r))
+        .map(|r| region_features(mesh, graph, labels, field, r))
         .filter(|f| f.vertices > 0)
         .collect();
     FeatureSizes { regions }
@@ -81,9 +168,10 @@ fn region_features(
     mesh: &Mesh,
     graph: &VertexGraph,
     labels: &[u32],
-    displacement: &[f64],
+    field: &TextureField,
     region: u32,
 ) -> RegionFeatures {
+    let displacement = &field.detail;
     let members: Vec<usize> = (0..labels.len()).filter(|&v| labels[v] == region).collect();
     let mut out = RegionFeatures {
         region,
@@ -102,7 +190,7 @@ fn region_features(
     for a in 0..3 {
         out.period[a] = dominant_period(mesh, &members, displacement, a, graph.mean_edge);
     }
-    let (radius, elements) = element_radius(mesh, graph, labels, displacement, region, &members);
+    let (radius, elements) = element_radius(mesh, graph, labels, field, region, &members);
     out.element_radius = radius;
     out.elements = elements;
     out
@@ -222,11 +310,19 @@ fn element_radius(
     mesh: &Mesh,
     graph: &VertexGraph,
     labels: &[u32],
-    t: &[f64],
+    field: &TextureField,
     region: u32,
     members: &[usize],
 ) -> ([Option<f64>; 3], usize) {
-    let elements = raised_elements(mesh, graph, labels, t, region, members);
+    let elements = raised_elements(
+        mesh,
+        graph,
+        labels,
+        &field.detail,
+        &field.area,
+        region,
+        members,
+    );
     let median = |a: usize| -> Option<f64> {
         let mut x: Vec<f64> = elements.iter().map(|e| e[a]).collect();
         if x.is_empty() {
@@ -238,8 +334,9 @@ fn element_radius(
     ([median(0), median(1), median(2)], elements.len())
 }
 
-/// The radius along x, y, z of each raised element of a region: `2σ` of the
-/// height-weighted spread of the vertices above the element's own half height.
+/// The radius along x, y, z of each raised element of a region: `2σ` of the spread of
+/// the vertices above the element's own half height, weighted by their height above it
+/// and their base area `vertex_area`.
 ///
 /// Elements are found as the connected parts above the region's half height (halfway
 /// between its median and its 95th percentile), but each is measured at half of its own
@@ -256,6 +353,7 @@ fn raised_elements(
     graph: &VertexGraph,
     labels: &[u32],
     t: &[f64],
+    vertex_area: &[f64],
     region: u32,
     members: &[usize],
 ) -> Vec<[f64; 3]> {
@@ -267,13 +365,6 @@ fn raised_elements(
         return Vec::new();
     }
     let threshold = 0.5 * (top + bottom);
-    let mut vertex_area = vec![0.0; mesh.positions.len()];
-    for (f, face) in mesh.faces.iter().enumerate() {
-        let a = mesh.face_area(f) / 3.0;
-        for &v in face {
-            vertex_area[v as usize] += a;
-        }
-    }
     let in_region = |v: usize| labels[v] == region;
     let (part, parts) = graph.parts(|v| in_region(v) && t[v] > threshold);
     // Per part: its peak vertex (highest, ties to the lower index) and its size.
@@ -424,49 +515,22 @@ pub struct SurfaceDistance {
     pub max: f64,
 }
 
-/// Closest point of triangle `abc` to `p` (Ericson, "Real-Time Collision Detection", 5.1.5).
-fn closest_on_triangle(
-    p: &Point3<f64>,
-    a: &Point3<f64>,
-    b: &Point3<f64>,
-    c: &Point3<f64>,
-) -> Point3<f64> {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
+/// The closest point of a surface to a point: where it lies and on which face.
+#[derive(Clone, Copy, Debug)]
+struct Foot {
+    point: Point3<f64>,
+    /// The face holding it (`u32::MAX` when it is a vertex without faces).
+    face: u32,
+    /// The nearest vertex of the surface (what the foot falls back to without faces).
+    vertex: u32,
 }
 
-/// Distance of every vertex of `from` to the surface of `to`: the nearest of the faces
-/// around the 8 vertices of `to` nearest to it. Never below the true distance (a minimum
-/// over some of `to`'s faces), equal to it wherever one of those faces holds the closest
-/// point (always, on meshes of even triangles, for points on or near `to`).
-pub fn distances_to_surface(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexError> {
+/// For every vertex of `from`, its closest point on the surface of `to`: the nearest of the
+/// faces around the 8 vertices of `to` nearest to it. The true closest point is a minimum
+/// over all of `to`'s faces, this one over some of them: never nearer than the true one,
+/// and the same wherever one of those faces holds it (always, on meshes of even triangles,
+/// for points on or near `to`).
+fn closest_points(from: &Mesh, to: &Mesh) -> Result<Vec<Foot>, GeotexError> {
     let index = PointIndex3::build(&to.positions).map_err(GeotexError::Index)?;
     let mut vertex_faces = vec![Vec::new(); to.positions.len()];
     for (f, face) in to.faces.iter().enumerate() {
@@ -479,16 +543,97 @@ pub fn distances_to_surface(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexEr
         .par_iter()
         .map(|p| {
             let mut best = f64::INFINITY;
+            let mut foot = Foot {
+                point: *p,
+                face: u32::MAX,
+                vertex: 0,
+            };
             for n in index.k_nearest(p, 8) {
-                best = best.min(n.distance);
+                if n.distance < best {
+                    best = n.distance;
+                    foot = Foot {
+                        point: to.positions[n.index as usize],
+                        face: u32::MAX,
+                        vertex: n.index,
+                    };
+                }
                 for &f in &vertex_faces[n.index as usize] {
                     let [a, b, c] = to.faces[f as usize].map(|v| to.positions[v as usize]);
-                    best = best.min((p - closest_on_triangle(p, &a, &b, &c)).norm());
+                    let (q, _) = closest_on_triangle(p, &a, &b, &c);
+                    let d = (p - q).norm();
+                    if d < best {
+                        best = d;
+                        foot = Foot {
+                            point: q,
+                            face: f,
+                            vertex: n.index,
+                        };
+                    }
                 }
             }
-            best
+            foot
         })
         .collect())
+}
+
+/// Distance of every vertex of `from` to the surface of `to` (see `closest_points`: never
+/// below the true distance, equal to it for points on or near `to`).
+pub fn distances_to_surface(from: &Mesh, to: &Mesh) -> Result<Vec<f64>, GeotexError> {
+    Ok(closest_points(from, to)?
+        .iter()
+        .zip(&from.positions)
+        .map(|(foot, p)| (p - foot.point).norm())
+        .collect())
+}
+
+/// Height of every vertex of `from` over the surface of `to`, and its foot there: the
+/// distance to its closest point on `to` (`closest_points`), positive on the side `to`'s
+/// normals point to (the vertex normals of `to` interpolated at the closest point, so that
+/// the sign is right at an edge or a corner too). This is eq. 5's displacement `t = (v_o − v_b)·n_b`
+/// when `to` is the base of `from` with the same vertices, up to the tangential part of
+/// `v_o − v_b`, and it needs no correspondence between the two meshes' vertices.
+pub fn heights_over_surface(
+    from: &Mesh,
+    to: &Mesh,
+) -> Result<(Vec<f64>, Vec<Point3<f64>>), GeotexError> {
+    let normals = to.vertex_normals();
+    let feet = closest_points(from, to)?;
+    let heights = feet
+        .iter()
+        .zip(&from.positions)
+        .map(|(foot, p)| {
+            let offset = p - foot.point;
+            let normal = if foot.face == u32::MAX {
+                normals[foot.vertex as usize]
+            } else {
+                let [a, b, c] = to.faces[foot.face as usize];
+                let w = barycentric(
+                    &foot.point,
+                    &to.positions[a as usize],
+                    &to.positions[b as usize],
+                    &to.positions[c as usize],
+                );
+                normals[a as usize] * w[0] + normals[b as usize] * w[1] + normals[c as usize] * w[2]
+            };
+            offset.norm().copysign(offset.dot(&normal))
+        })
+        .collect();
+    Ok((heights, feet.iter().map(|f| f.point).collect()))
+}
+
+/// Barycentric weights of `p` (in the plane of `abc`) in the triangle `abc`; a degenerate
+/// triangle gives its first corner all the weight.
+fn barycentric(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>, c: &Point3<f64>) -> [f64; 3] {
+    let (v0, v1, v2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (v0.dot(&v0), v0.dot(&v1), v1.dot(&v1));
+    let (d20, d21) = (v2.dot(&v0), v2.dot(&v1));
+    let denom = d00 * d11 - d01 * d01;
+    if denom.abs() <= f64::EPSILON * d00 * d11 {
+        return [1.0, 0.0, 0.0];
+    }
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    [1.0 - v - w, v, w]
 }
 
 /// Symmetric point-to-surface distance between `a` and `b` (module docs).
@@ -540,20 +685,25 @@ mod tests {
     fn identical_bumps_measure_alike_wherever_they_lie_in_the_patch() {
         // The bumpy box's bumps of one patch are one shape: each measures within 20% of
         // the others, in the patch's middle (where the faired base rises most) as at its
-        // edge. Big bumps 0.0325-0.0348 (one threshold for the whole region read them
-        // 0.028 in the middle and 0.036-0.039 at the edge); small bumps 0.0202-0.0234,
+        // edge. Big bumps 0.0322-0.0347 (one threshold for the whole region read them
+        // 0.028 in the middle and 0.036-0.039 at the edge); small bumps 0.0201-0.0231,
         // whose part above half height is about two edges across (the mesh's sampling).
         let bumpy = gt::bumpy_box(&gt::BumpyBoxConfig::default());
         let labels: Vec<u32> = bumpy.labels.iter().map(|&l| l as u32).collect();
         let (_, graph) = prepare(&bumpy.mesh).unwrap();
         let ex = extract(&bumpy.mesh, &graph, &labels, &FairingConfig::default()).unwrap();
+        let base = Mesh::from_triangles(ex.base, bumpy.mesh.faces.clone());
+        let sigmas = trend_scales(&base, &labels, &SynthesisConfig::default());
+        let field =
+            texture_over(&bumpy.mesh, &labels, &base, &bumpy.mesh.positions, &sigmas).unwrap();
         for region in [1, 2] {
             let members: Vec<usize> = (0..labels.len()).filter(|&v| labels[v] == region).collect();
             let radii = raised_elements(
                 &bumpy.mesh,
                 &graph,
                 &labels,
-                &ex.displacement,
+                &field.detail,
+                &field.area,
                 region,
                 &members,
             );
@@ -567,6 +717,28 @@ mod tests {
                 );
                 assert!(hi < 1.2 * lo, "region {region} axis {a}: {lo} .. {hi}");
             }
+        }
+    }
+
+    #[test]
+    fn heights_over_a_plane_are_the_signed_offsets_and_feet_lie_below() {
+        // A plane z = 0 (normals +z) and points above and below it, away from its border:
+        // the height is the signed offset and the foot the point straight below, exact up
+        // to round-off (coordinates below 1, a few ulps).
+        let plane = fresco_datasets::shapes::grid_patch(20, |x, y| Point3::new(x, y, 0.0));
+        let up = plane.vertex_normals()[0].z.signum();
+        let points: Vec<Point3<f64>> = (0..50)
+            .map(|k| {
+                let (x, y) = (0.2 + 0.012 * k as f64, 0.8 - 0.011 * k as f64);
+                let z = if k % 2 == 0 { 0.01 } else { -0.02 } * (1.0 + 0.1 * k as f64);
+                Point3::new(x, y, z)
+            })
+            .collect();
+        let from = Mesh::from_triangles(points.clone(), Vec::new());
+        let (heights, feet) = heights_over_surface(&from, &plane).unwrap();
+        for ((p, h), f) in points.iter().zip(&heights).zip(&feet) {
+            assert!((h - up * p.z).abs() < 1e-12, "{p} {h}");
+            assert!((f - Point3::new(p.x, p.y, 0.0)).norm() < 1e-12, "{p} {f}");
         }
     }
 

@@ -9,9 +9,10 @@
 //! - [`Method::Uniform`]: scaling along each axis ("simply scale").
 //!
 //! Every method also segments the input (its labels carry over to the output) and, with
-//! `measure`, fairs input and output to report their feature sizes and the base-shape
-//! error: the distance of the faired output to the input's base resized by the same
-//! deformation.
+//! `measure`, reports the feature sizes of input and output, both over one base (the
+//! input's faired base, carried to the output through the method's own deformation; see
+//! measure.rs), and the base-shape error: the distance of the faired output to that
+//! resized base.
 
 use std::time::Instant;
 
@@ -25,7 +26,7 @@ use crate::curvature::{
 use crate::fairing::{Extraction, FairingConfig, extract, vertex_normals};
 use crate::graph::{VertexGraph, prepare};
 use crate::measure::{
-    FeatureSizes, SurfaceDistance, feature_sizes, feature_sizes_of, surface_distance,
+    FeatureSizes, SurfaceDistance, feature_sizes_of, surface_distance, texture_over, trend_scales,
 };
 use crate::protective_grid::{GridConfig, GridDeformation, optimise};
 use crate::refine::{carry, nalgebra_mid, refine};
@@ -522,6 +523,7 @@ pub fn resize(
                     extraction.as_ref(),
                     &out_mesh,
                     &out_labels,
+                    &rest,
                     &deformation,
                     cfg,
                 )
@@ -663,6 +665,7 @@ fn measure(
     extraction: Option<&Extraction>,
     out: &Mesh,
     out_labels: &[u32],
+    rest: &[Point3<f64>],
     deformation: &GridDeformation,
     cfg: &ResizeConfig,
 ) -> Result<Measurement, GeotexError> {
@@ -674,12 +677,34 @@ fn measure(
             &computed
         }
     };
-    let input = feature_sizes_of(mesh, graph, labels, &ex.displacement);
-    let (output, out_base) = feature_sizes(out, out_labels, &cfg.fairing)?;
+    // The texture is measured over one base on both sides: the input's faired base, and
+    // on the output the same surface carried through the method's own deformation (what
+    // the output's base should be). Re-fairing the output instead measures it over a
+    // different surface: the volume-keeping membrane (eqs. 2-4) settles on a curved cap
+    // where its stretched copy does not (the scaly blob's faired output differs from its
+    // resized faired input by 0.027 RMS, the scales' own height), and a uniform 2x stretch
+    // then read 1.20 along x.
+    //
+    // Less the heights' trend at the synthesis' scale (synthesis.rs, module docs): what
+    // the method calls base it carries over rather than re-synthesises, so the measure
+    // takes it out too. On the scaly blob the faired cap leaves a trend as high as the
+    // scales, and above one threshold for the region the plates on its high side merge
+    // into networks (34 elements found where about 120 plates lie); the trend is the same
+    // field on input and output (taken at the rest positions, where each output vertex
+    // lies on the input), so a uniform stretch maps the detail onto itself.
+    let in_base = Mesh::from_triangles(ex.base.clone(), mesh.faces.clone());
+    let sigmas = trend_scales(&in_base, labels, &cfg.synthesis);
+    let field = texture_over(mesh, labels, &in_base, &mesh.positions, &sigmas)?;
+    let input = feature_sizes_of(mesh, graph, labels, &field);
     let reference = Mesh::from_triangles(
         ex.base.iter().map(|p| deformation.apply(p)).collect(),
         mesh.faces.clone(),
     );
+    let (_, out_graph) = prepare(out)?;
+    let field = texture_over(out, out_labels, &reference, rest, &sigmas)?;
+    let output = feature_sizes_of(out, &out_graph, out_labels, &field);
+    // The base-shape error: the output faired on its own against that same surface.
+    let out_base = extract(out, &out_graph, out_labels, &cfg.fairing)?.base;
     let faired_out = Mesh::from_triangles(out_base, out.faces.clone());
     let base_error = surface_distance(&faired_out, &reference)?;
     let diagonal = out.bounding_box().map_or(1.0, |b| b.diagonal());

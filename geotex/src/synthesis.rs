@@ -1267,11 +1267,24 @@ fn blur_fields(
     Ok(rhs.chunks(n.max(1)).map(<[f64]>::to_vec).collect())
 }
 
+/// The scale of a region's trend (module docs): `trend_scale` half-widths of the coarsest
+/// template, whose spacing is `d 2^(levels-1)` for the region's finest spacing `d`; 0 when
+/// the trend is off.
+pub(crate) fn trend_sigma(cfg: &SynthesisConfig, d: f64) -> f64 {
+    cfg.trend_scale * (cfg.half_width << (cfg.levels - 1)) as f64 * d
+}
+
+/// The finest template spacing of a region, `d = sqrt(2A)` with `A` the mean area of the
+/// triangles with all corners in it (module docs); 0 when it has none.
+pub(crate) fn template_spacing(surface: &Surface, is_member: &[bool]) -> f64 {
+    (2.0 * mean_area(surface, is_member)).sqrt()
+}
+
 /// The trend of a region's displacement: its local mean over the region at scale `sigma`,
 /// `L = B(χ t) / B(χ)` with `B` the low-pass of [`blur`] and `χ` the region's indicator
 /// (normalised convolution, so that the mean does not sag towards the region's border);
 /// 0 where the region's weight `B(χ)` is below a thousandth.
-fn trend(
+pub(crate) fn trend(
     surface: &Surface,
     field: &[f64],
     in_region: &[bool],
@@ -1378,11 +1391,10 @@ pub(crate) fn synthesise_region(
         is_member[v as usize] = true;
     }
     let mut report = RegionSynthesis::default();
-    let area = mean_area(example.surface, &in_example);
-    if area <= 0.0 || target.members.is_empty() {
+    let d = template_spacing(example.surface, &in_example);
+    if d <= 0.0 || target.members.is_empty() {
         return Ok((x, report));
     }
-    let d = (2.0 * area).sqrt();
     report.spacing = d;
     let axes = region_axes(example.surface, &example.members);
     let m = cfg.half_width;
@@ -1390,7 +1402,7 @@ pub(crate) fn synthesise_region(
 
     // The trend (module docs): synthesis runs on the detail `t − L`, `L` carried.
     let mut blur_pattern = None;
-    let trend_sigma = cfg.trend_scale * (m << (cfg.levels - 1)) as f64 * d;
+    let trend_sigma = trend_sigma(cfg, d);
     let (detail_in, detail_out, trend_out) = if trend_sigma > 0.0 {
         let trend_in = trend(
             example.surface,
