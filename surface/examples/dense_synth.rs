@@ -2,7 +2,9 @@
 //! cloud against its ground-truth mesh (the figures of issue 13).
 //!
 //! `cargo run --release -p fresco-surface --example dense_synth -- <dataset> <out> [--masks]
-//! [--eval-only] [key=value ...]` (keys: `shared/dense_keys.rs`)
+//! [--eval-only | --fuse-only] [key=value ...]` (keys: `shared/dense_keys.rs`). `--fuse-only`
+//! fuses the depth maps already in `<out>` again (with the given fusion keys) and judges the
+//! cloud, to study the fusion without running PatchMatch.
 
 #[path = "shared/dense_keys.rs"]
 mod dense_keys;
@@ -23,6 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(&args[2]);
     let masks = args.iter().any(|a| a == "--masks");
     let eval_only = args.iter().any(|a| a == "--eval-only");
+    let fuse_only = args.iter().any(|a| a == "--fuse-only");
     let rec = colmap::read_model(&dataset.join("sparse"))?;
     let images = ImageSource::Folder(dataset.join("images"));
     let mask_dir = dataset.join("masks");
@@ -37,7 +40,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         set_dense_key(&mut config, k, v)?;
     }
     let t = Instant::now();
-    if !eval_only {
+    if fuse_only {
+        let summary = fuse_again(&out, &config)?;
+        println!(
+            "fusion {:.2}s, {} points",
+            t.elapsed().as_secs_f64(),
+            summary.points
+        );
+    } else if !eval_only {
         let summary = densify(&inputs, &config, &out, &NoProgress)?;
         let seconds = t.elapsed().as_secs_f64();
         for v in &summary.views {
@@ -77,4 +87,69 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let q = evaluate_cloud(&cloud, &mesh, &views, &EvalConfig::default())?;
     println!("{}", serde_json::to_string_pretty(&q)?);
     Ok(())
+}
+
+/// Fuses the geometric (or photometric) maps of the dense workspace `out` again with
+/// `config.fusion`, the sources of its `summary.json` as each view's neighbours.
+fn fuse_again(
+    out: &std::path::Path,
+    config: &DenseConfig,
+) -> Result<fresco_surface::dense::FusionSummary, Box<dyn std::error::Error>> {
+    use fresco_core::photo::load_photo;
+    use fresco_surface::dense::{DenseLayout, DenseView, depth_map_file, fusion};
+    let layout = DenseLayout::new(out);
+    let rec = colmap::read_model(&layout.sparse())?;
+    let views: Vec<DenseView> = rec
+        .images
+        .values()
+        .map(|im| DenseView {
+            image_id: im.id,
+            name: im.name.clone(),
+            camera: rec.cameras[&im.camera_id].clone(),
+            cam_from_world: im.cam_from_world,
+        })
+        .collect();
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(layout.summary())?)?;
+    let neighbours: Vec<Vec<usize>> = views
+        .iter()
+        .map(|v| {
+            summary["views"]
+                .as_array()
+                .and_then(|a| a.iter().find(|s| s["name"] == v.name.as_str()))
+                .and_then(|s| s["sources"].as_array())
+                .map(|s| {
+                    s.iter()
+                        .filter_map(|n| {
+                            views
+                                .iter()
+                                .position(|w| Some(w.name.as_str()) == n.as_str())
+                        })
+                        .collect()
+                })
+                .unwrap_or_default()
+        })
+        .collect();
+    let kind = if config.geometric {
+        "geometric"
+    } else {
+        "photometric"
+    };
+    let load = |v: usize| -> Result<Option<fusion::FusionView>, fresco_surface::dense::DenseError> {
+        let (d, n, c) = layout.maps(&views[v].name, kind);
+        if !d.is_file() {
+            return Ok(None);
+        }
+        let map = depth_map_file::read_depth_map(&d, &n, &c)?;
+        let rgb = load_photo(&layout.image(&views[v].name))?.rgb;
+        Ok(Some(fusion::FusionView { map, rgb }))
+    };
+    Ok(fusion::fuse(
+        &views,
+        &neighbours,
+        &load,
+        None,
+        &config.fusion,
+        &layout.fused(),
+        &NoProgress,
+    )?)
 }

@@ -5,6 +5,8 @@
 
 #[path = "shared/dense_keys.rs"]
 mod dense_keys;
+#[path = "shared/temple_parts.rs"]
+mod temple_parts;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -95,6 +97,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         } else if e > 0.0 {
             extra += 1;
+        }
+    }
+    // Bad (relative depth error >= 0.2%) and missing pixels by part of the temple and by
+    // distance to a depth discontinuity (<= 5 px or farther).
+    {
+        let normals: Vec<_> = mesh.face_normals().iter().map(|n| n.normalize()).collect();
+        let edge = temple_parts::edge_distance(&vis);
+        let mut table: std::collections::BTreeMap<(&str, bool), [usize; 3]> = Default::default();
+        for (i, &near) in edge.iter().enumerate() {
+            let (g, e) = (vis.depth[i], map.depth[i]);
+            if !g.is_finite() {
+                continue;
+            }
+            let name = temple_parts::part(&mesh, &normals, vis.face_ids[i] as usize);
+            let row = table.entry((name, near <= 5.0)).or_default();
+            row[0] += 1;
+            if e <= 0.0 {
+                row[2] += 1;
+            } else if ((e - g) / g).abs() >= 0.002 {
+                row[1] += 1;
+            }
+        }
+        for ((name, near), [n, bad, missing]) in &table {
+            println!(
+                "  {name:<38} {:<10} {n:>7} px  bad {:5.1}%  missing {:5.1}%",
+                if *near { "edge<=5" } else { "inner" },
+                100.0 * *bad as f64 / *n as f64,
+                100.0 * *missing as f64 / *n as f64
+            );
         }
     }
     errs.sort_by(f32::total_cmp);

@@ -28,8 +28,13 @@ pub fn set_dense_key(
         "sigma_color" => pm.sigma_color = value.parse()?,
         "sigma_spatial" => pm.sigma_spatial = value.parse()?,
         "max_cost" => pm.max_cost = value.parse()?,
+        "min_ref_std" => pm.min_ref_std = value.parse()?,
         "max_sources" => config.view_selection.max_sources = value.parse()?,
         "min_views" => config.fusion.min_views = value.parse()?,
+        "max_reproj_px" => config.fusion.max_reproj_px = value.parse()?,
+        "max_depth_error" => config.fusion.max_depth_error = value.parse()?,
+        "max_normal_deg" => config.fusion.max_normal_deg = value.parse()?,
+        "free_space" => config.fusion.free_space = value.parse()?,
         "support_plane" => config.fusion.support_plane.remove = value.parse()?,
         _ => return Err(format!("unknown key {key}").into()),
     }

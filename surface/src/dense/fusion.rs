@@ -9,6 +9,19 @@
 //! point is the mean of the agreeing views' 3D points, with their mean normal (in the world
 //! frame, facing the cameras that saw it) and mean colour; its visibility list names them.
 //!
+//! Agreement alone keeps the points that several views got wrong alike. The commonest such
+//! error is "fattening": near an occluding edge each view's support window carries the nearer
+//! surface's plane a few pixels past its silhouette, and views on the same side of the edge
+//! extend it alike. Such a point floats in front of what other views see: a view whose depth
+//! map, where the point projects, holds a surface farther than the point (beyond
+//! `max_depth_error`) looks straight through it, which an opaque surface point cannot allow.
+//! With `free_space`, a point is dropped when at least as many of the checked views look
+//! through it as agree with it (the reference included): Merrell et al.'s stability-based
+//! fusion ("Real-Time Visibility-Based Fusion of Depth Maps", ICCV 2007, section 4), which
+//! weighs the free-space violations of a depth hypothesis against its support, so that a
+//! single wrong depth map (one view's too-far depth where the point projects) cannot remove a
+//! point many views agree on.
+//!
 //! The fusion streams: views are taken in order, each with its neighbours (its source views),
 //! so only those depth maps and images are in memory at a time (kept while the next view
 //! still needs them). Neighbour pixels that joined a point are marked used (one bit per pixel)
@@ -48,6 +61,9 @@ pub struct FusionConfig {
     pub max_depth_error: f64,
     /// Largest angle between normals, degrees. Default 10 (COLMAP's `max_normal_error`).
     pub max_normal_deg: f64,
+    /// Drop a point when at least as many of the checked views see a surface behind it (look
+    /// through it) as agree with it (see the module documentation). Default true.
+    pub free_space: bool,
     /// Removal of the plane an object stands on (`support_plane.rs`); on by default.
     pub support_plane: SupportPlaneConfig,
 }
@@ -59,6 +75,7 @@ impl Default for FusionConfig {
             max_reproj_px: 2.0,
             max_depth_error: 0.01,
             max_normal_deg: 10.0,
+            free_space: true,
             support_plane: SupportPlaneConfig::default(),
         }
     }
@@ -372,11 +389,18 @@ fn fuse_view(
                     continue;
                 }
                 let count = views.len() as f64;
+                let position = sum_p / count;
+                if cfg.free_space
+                    && views_looking_through(&position, others, geometry, cfg.max_depth_error)
+                        >= views.len()
+                {
+                    continue;
+                }
                 let Some(normal) = sum_n.try_normalize(1e-12) else {
                     continue;
                 };
                 out.push(Fused {
-                    position: Point3::from(sum_p / count),
+                    position: Point3::from(position),
                     normal,
                     color: sum_c.map(|s| (s as f64 / count).round() as u8),
                     views,
@@ -387,6 +411,32 @@ fn fuse_view(
         })
         .collect();
     rows.into_iter().flatten().collect()
+}
+
+/// How many of `others` see, where world point `p` projects, a surface farther than `p` by
+/// more than `max_depth_error` (relative to that surface's depth): views that look through
+/// `p`. Views that agreed with `p` hold its depth there and do not count.
+fn views_looking_through(
+    p: &Vector3<f64>,
+    others: &[(usize, &FusionView)],
+    geometry: &[Geometry],
+    max_depth_error: f64,
+) -> usize {
+    others
+        .iter()
+        .filter(|(j, other)| {
+            let Some((u, v, z)) = geometry[*j].project(p) else {
+                return false;
+            };
+            let (ix, iy) = (u.round(), v.round());
+            let om = &other.map;
+            if ix < 0.0 || iy < 0.0 || ix >= om.width as f64 || iy >= om.height as f64 {
+                return false;
+            }
+            let dj = om.depth[iy as usize * om.width + ix as usize] as f64;
+            dj > 0.0 && z < dj * (1.0 - max_depth_error)
+        })
+        .count()
 }
 
 /// Every fused point's position and normal, in record order.
@@ -583,6 +633,86 @@ mod tests {
             camera,
             cam_from_world: CamFromWorld(Rigid3::new(q, -(q * eye.coords))),
         }
+    }
+
+    /// The depth map of `view` seeing the plane x = `plane_x` (normal +x, facing views on the
+    /// +x side), and a grey image.
+    fn plane_view(view: &DenseView, plane_x: f64) -> FusionView {
+        let g = Geometry::of(view);
+        let (w, h) = (64, 48);
+        let mut map = DepthMap::empty(w, h);
+        let centre = -(g.r.transpose() * g.t);
+        let n_cam = g.r * Vector3::x();
+        for y in 0..h {
+            for x in 0..w {
+                // World direction of the pixel's ray, scaled to camera-frame z = 1.
+                let dir = g.world(x as f64, y as f64, 1.0) - centre;
+                let t = (plane_x - centre.x) / dir.x;
+                if t > 0.0 {
+                    map.depth[y * w + x] = t as f32;
+                    map.normal[y * w + x] = [n_cam.x as f32, n_cam.y as f32, n_cam.z as f32];
+                }
+            }
+        }
+        FusionView {
+            map,
+            rgb: RgbImage::from_pixel(w as u32, h as u32, image::Rgb([128, 128, 128])),
+        }
+    }
+
+    #[test]
+    fn a_point_more_views_look_through_than_agree_with_is_dropped() {
+        // Views A and B see a surface at x = 0.5; C and D, from the same side, see the wall
+        // x = 0 behind it where the surface would be: they look through A's points.
+        let views = [
+            view(Point3::new(4.0, 0.0, 0.0)),
+            view(Point3::new(4.0, 0.5, 0.3)),
+            view(Point3::new(4.0, -0.5, 0.3)),
+            view(Point3::new(4.0, 0.2, -0.4)),
+        ];
+        let geometry: Vec<Geometry> = views.iter().map(Geometry::of).collect();
+        let surface: Vec<FusionView> = views.iter().map(|v| plane_view(v, 0.5)).collect();
+        let wall: Vec<FusionView> = views.iter().map(|v| plane_view(v, 0.0)).collect();
+        let fuse_a = |c: &FusionView, d: &FusionView, free_space: bool| {
+            let cfg = FusionConfig {
+                min_views: 2,
+                free_space,
+                ..FusionConfig::default()
+            };
+            let others = [(1, &surface[1]), (2, c), (3, d)];
+            let cos = cfg.max_normal_deg.to_radians().cos();
+            fuse_view(0, &surface[0], &others, &geometry, None, &cfg, cos)
+        };
+        let seen_by = |p: &Fused, j: usize| {
+            geometry[j]
+                .project(&p.position.coords)
+                .is_some_and(|(u, v, _)| {
+                    u.round() >= 0.0 && v.round() >= 0.0 && u.round() < 64.0 && v.round() < 48.0
+                })
+        };
+        let kept = fuse_a(&wall[2], &wall[3], false);
+        assert!(kept.len() > 1000, "{} points", kept.len());
+        assert!(kept.iter().all(|p| p.views.len() == 2));
+        // Two views look through, two agree: every point C and D both see is dropped.
+        let checked = fuse_a(&wall[2], &wall[3], true);
+        assert!(
+            checked.len() < kept.len() / 2,
+            "{} of {}",
+            checked.len(),
+            kept.len()
+        );
+        assert!(checked.iter().all(|p| !(seen_by(p, 2) && seen_by(p, 3))));
+        assert_eq!(
+            checked.len(),
+            kept.iter()
+                .filter(|p| !(seen_by(p, 2) && seen_by(p, 3)))
+                .count()
+        );
+        // One view looks through, three agree: nothing is dropped.
+        let outvoted = fuse_a(&surface[2], &wall[3], true);
+        let all = fuse_a(&surface[2], &wall[3], false);
+        assert_eq!(outvoted.len(), all.len());
+        assert!(outvoted.iter().any(|p| p.views.len() == 3 && seen_by(p, 3)));
     }
 
     #[test]
