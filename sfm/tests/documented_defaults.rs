@@ -219,8 +219,21 @@ fn mapping_configs() {
                 "FocalFromFConfig::default()",
                 fresco_sfm::focal_from_f::FocalFromFConfig::default(),
             ),
+            known(
+                "TrackRefinementConfig::default()",
+                fresco_sfm::mapping::track_refinement::TrackRefinementConfig::default(),
+            ),
         ],
     );
+    assert_documented_defaults(
+        include_str!("../src/mapping/track_refinement.rs"),
+        "TrackRefinementConfig",
+        &debug(&fresco_sfm::mapping::track_refinement::TrackRefinementConfig::default()),
+        &[],
+    );
+    let mut bad = SfmConfig::default();
+    bad.track_refinement.min_ncc = f64::NAN;
+    assert_eq!(bad.check().unwrap_err().field, "track_refinement.min_ncc");
     assert_documented_defaults(
         include_str!("../src/focal_from_f.rs"),
         "FocalFromFConfig",

@@ -68,13 +68,19 @@ fn scene_at(width: u32, height: u32, configure: impl FnOnce(&mut SceneConfig)) -
 /// Renders `config`, lets `edit` change the photos, reconstructs with default settings and
 /// evaluates the first model against the generator's cameras.
 fn reconstruct(config: &SceneConfig, edit: impl Fn(&Path)) -> (SfmSummary, PoseEvaluation, f64) {
-    reconstruct_with(config, &FeaturesConfig::default(), edit)
+    reconstruct_with(
+        config,
+        &FeaturesConfig::default(),
+        &SfmConfig::default(),
+        edit,
+    )
 }
 
-/// [`reconstruct`] with the features stage's settings `features`.
+/// [`reconstruct`] with the features stage's settings `features` and the sfm stage's `sfm`.
 fn reconstruct_with(
     config: &SceneConfig,
     features: &FeaturesConfig,
+    sfm: &SfmConfig,
     edit: impl Fn(&Path),
 ) -> (SfmSummary, PoseEvaluation, f64) {
     let dir = tempfile::tempdir().unwrap();
@@ -85,7 +91,7 @@ fn reconstruct_with(
     let ws = dir.path().join("ws");
     extract_photo_folder(&data.join("images"), &ws, features, &NoProgress).unwrap();
     match_workspace(&ws, &MatchStageConfig::default(), &NoProgress).unwrap();
-    let sfm = run_sfm(&ws, &SfmConfig::default(), &NoProgress).unwrap();
+    let sfm = run_sfm(&ws, sfm, &NoProgress).unwrap();
     let model = read_model_or_workspace(&ws).unwrap();
     let truth = colmap::read_model(&data.join("sparse")).unwrap();
     let e = evaluate_poses(&model, &truth).unwrap();
@@ -248,6 +254,28 @@ fn no_exif_focal_four_times_the_prior_at_640x480() {
     let (sfm, e, _) = reconstruct(&scene_at(640, 480, |c| c.focal = Some(4.0 * 768.0)), |_| {});
     assert_one_accurate_model(&sfm, &e);
     assert!(e.median_focal_error <= 0.02, "{e:?}");
+}
+
+/// The same scene with the keypoints of every track aligned onto one reference observation
+/// (`track_refinement.rs`, off by default): the view-dependent keypoint error on the curved
+/// surface shrinks, and with it the focal length's bias. Measured (session 11): 5.36% off
+/// without, 2.75% with; asserted: the refined error is at most 3/4 of the unrefined one (the
+/// run-to-run spread of the focal error at this size is about 1%, so 5.4% -> 4% would be
+/// within noise of no change; the margin leaves room for other pipeline changes).
+#[test]
+#[ignore = "640x480 measurement (heavy, two reconstructions); track refinement is not the default"]
+fn track_refinement_reduces_the_focal_bias_at_640x480() {
+    let scene = scene_at(640, 480, |c| c.focal = Some(4.0 * 768.0));
+    let (_, plain, _) = reconstruct(&scene, |_| {});
+    let mut sfm = SfmConfig::default();
+    sfm.track_refinement.enabled = true;
+    let (summary, refined, _) = reconstruct_with(&scene, &FeaturesConfig::default(), &sfm, |_| {});
+    println!("track refinement: {:?}", summary.track_refinement);
+    assert_one_accurate_model(&summary, &refined);
+    assert!(
+        refined.median_focal_error <= 0.75 * plain.median_focal_error,
+        "refined {refined:?}, plain {plain:?}"
+    );
 }
 
 #[test]

@@ -8,8 +8,10 @@
 //!   1.2 x max(w, h) default) starts from the focal length of its pairs' fundamental matrices
 //!   (`focal_from_f.rs`) when that differs from the default by more than the tolerance, and
 //!   its pairs' relative poses (derived under the default) are then estimated again;
-//! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional silhouette constraints
-//!   (`silhouette.rs`, followed by a global adjustment), then the models are written to
+//! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional track refinement
+//!   (`track_refinement.rs`, off by default, followed by a global adjustment), optional
+//!   silhouette constraints (`silhouette.rs`, followed by a global adjustment), then the
+//!   models are written to
 //!   `<ws>/sparse/0` (the largest), `<ws>/sparse/1`, ... (COLMAP text, each folder replaced as a
 //!   whole) and the main model's points to `<ws>/sparse/points.ply`; returns an
 //!   [`SfmSummary`];
@@ -37,6 +39,10 @@ use crate::geometry::two_view::PairKind;
 use crate::mapping::mapper::{
     Degeneracy, MapperConfig, MapperError, MapperImage, MapperInput, MapperPair, MapperTimes,
     bundle_config, map,
+};
+use crate::mapping::track_refinement::{
+    ImagePyramid, KeypointShape, RefinementImage, TrackRefinementConfig, TrackRefinementSummary,
+    refine_tracks,
 };
 use crate::workspace::{ImageEntry, read_features, read_images, read_matches};
 
@@ -72,6 +78,10 @@ pub struct SfmConfig {
     /// The focal length of cameras without a prior from fundamental matrices (on by
     /// default). Default: `FocalFromFConfig::default()`.
     pub focal_from_f: FocalFromFConfig,
+    /// Keypoints of every track aligned onto one reference observation by patch alignment,
+    /// then a global adjustment (`track_refinement.rs`). Default:
+    /// `TrackRefinementConfig::default()` (off).
+    pub track_refinement: TrackRefinementConfig,
 }
 
 impl Default for SfmConfig {
@@ -84,6 +94,7 @@ impl Default for SfmConfig {
             silhouette: SilhouetteConfig::default(),
             colours: true,
             focal_from_f: FocalFromFConfig::default(),
+            track_refinement: TrackRefinementConfig::default(),
         }
     }
 }
@@ -111,6 +122,9 @@ impl SfmConfig {
             f.max_spread,
             "finite and >= 0",
         )?;
+        self.track_refinement
+            .check()
+            .map_err(|e| e.within("track_refinement"))?;
         self.silhouette.check().map_err(|e| e.within("silhouette"))
     }
 }
@@ -193,6 +207,9 @@ pub struct SfmSummary {
     /// Mean number of images observing a 3D point of the main model.
     pub mean_track_length: f64,
     pub silhouette_points: Option<usize>,
+    /// What the track refinement did on the main model (None: off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub track_refinement: Option<TrackRefinementSummary>,
     pub models: Vec<ModelSummary>,
     pub unregistered: Vec<Unregistered>,
     pub points_ply: PathBuf,
@@ -526,6 +543,58 @@ fn find_mask(dir: &Path, name: &str) -> Option<PathBuf> {
     .find(|p| p.is_file())
 }
 
+/// Refines the tracks of every model (`track_refinement.rs`) on the photos' pyramids and the
+/// features' scales and orientations, then adjusts each model globally with the final
+/// adjustment's settings. Returns the main model's summary.
+fn refine_models(
+    ws: &Path,
+    models: &mut [Reconstruction],
+    mapper: &MapperConfig,
+    config: &TrackRefinementConfig,
+) -> Result<TrackRefinementSummary, SfmError> {
+    let registered: BTreeSet<u32> = models
+        .iter()
+        .flat_map(|m| m.images.keys().copied())
+        .collect();
+    let list = read_images(ws)?;
+    let images: Result<HashMap<u32, RefinementImage>, SfmError> = list
+        .images
+        .par_iter()
+        .filter(|im| registered.contains(&im.id))
+        .map(|im| {
+            let photo = load_photo(&im.path)?;
+            let features = read_features(ws, im)?;
+            let shapes = features
+                .keypoints
+                .iter()
+                .map(|k| KeypointShape {
+                    scale: f64::from(k.scale),
+                    orientation: f64::from(k.orientation),
+                })
+                .collect();
+            Ok((
+                im.id,
+                RefinementImage {
+                    pyramid: ImagePyramid::new(&photo.grey),
+                    shapes,
+                },
+            ))
+        })
+        .collect();
+    let images = images?;
+    let bundle = bundle_config(mapper);
+    let mut main = TrackRefinementSummary::default();
+    for (k, rec) in models.iter_mut().enumerate() {
+        let summary = refine_tracks(rec, &images, config);
+        tracing::info!("model {k}: track refinement {summary:?}");
+        bundle_adjust(rec, &BundleSetup::global(rec), &bundle)?;
+        if k == 0 {
+            main = summary;
+        }
+    }
+    Ok(main)
+}
+
 /// Adds silhouette points from the masks in `dir` to `rec` and adjusts it globally; returns
 /// the number of points added.
 fn apply_silhouettes(
@@ -702,6 +771,16 @@ pub fn run_sfm(
             reason,
         });
     }
+    let track_refinement = if config.track_refinement.enabled {
+        Some(refine_models(
+            ws,
+            &mut out.models,
+            &mapper,
+            &config.track_refinement,
+        )?)
+    } else {
+        None
+    };
     let silhouette_points = match &config.masks {
         Some(dir) => Some(apply_silhouettes(&mut out.models[0], dir, config)?),
         None => None,
@@ -813,6 +892,7 @@ pub fn run_sfm(
         mean_reprojection_px: mean_reprojection_error(main),
         mean_track_length: mean_track_length(main),
         silhouette_points,
+        track_refinement,
         models,
         unregistered,
         points_ply,
