@@ -1927,6 +1927,44 @@ mod tests {
     /// The plane scene's problem: the reference view `reference` with its image, and each
     /// source camera with its image and, for a geometric pass, its depth map; all with
     /// intrinsics `k`, depths drawn from [1, 4].
+    /// The 64x48 plane scene of the kernel comparisons: a reference camera and two sources
+    /// (the second tilted by `second_tilt`), rendered.
+    struct KernelScene {
+        w: usize,
+        h: usize,
+        k: Intrinsics,
+        reference: Rigid3,
+        cams: [Rigid3; 2],
+        ref_img: GreyImage,
+        imgs: Vec<GreyImage>,
+    }
+
+    fn kernel_scene(second_tilt: f64) -> KernelScene {
+        let (w, h) = (64, 48);
+        let k = Intrinsics {
+            fx: 60.0,
+            fy: 60.0,
+            cx: 31.5,
+            cy: 23.5,
+        };
+        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.2);
+        let cams = [
+            camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2),
+            camera_at(Vector3::new(-0.25, 0.1, 2.1), second_tilt),
+        ];
+        let ref_img = render(&k, w, h, &reference);
+        let imgs = cams.iter().map(|c| render(&k, w, h, c)).collect();
+        KernelScene {
+            w,
+            h,
+            k,
+            reference,
+            cams,
+            ref_img,
+            imgs,
+        }
+    }
+
     fn plane_problem<'a>(
         ref_img: &'a GreyImage,
         k: Intrinsics,
@@ -1986,20 +2024,15 @@ mod tests {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let (w, h) = (64, 48);
-        let k = Intrinsics {
-            fx: 60.0,
-            fy: 60.0,
-            cx: 31.5,
-            cy: 23.5,
-        };
-        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.2);
-        let cams = [
-            camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2),
-            camera_at(Vector3::new(-0.25, 0.1, 2.1), 0.25),
-        ];
-        let ref_img = render(&k, w, h, &reference);
-        let imgs: Vec<GreyImage> = cams.iter().map(|c| render(&k, w, h, c)).collect();
+        let KernelScene {
+            w,
+            h,
+            k,
+            reference,
+            cams,
+            ref_img,
+            imgs,
+        } = kernel_scene(0.25);
         let sources = cams.iter().zip(&imgs).map(|(c, img)| (c, img, None));
         let problem = plane_problem(&ref_img, k, &reference, sources, None);
         let cfg = PatchMatchConfig::default();
@@ -2216,20 +2249,15 @@ mod tests {
     /// both run the portable code.)
     #[test]
     fn avx2_and_portable_kernels_give_the_same_map() {
-        let (w, h) = (64, 48);
-        let k = Intrinsics {
-            fx: 60.0,
-            fy: 60.0,
-            cx: 31.5,
-            cy: 23.5,
-        };
-        let reference = camera_at(Vector3::new(0.0, 0.0, 2.0), 0.2);
-        let cams = [
-            camera_at(Vector3::new(0.3, 0.0, 2.0), 0.2),
-            camera_at(Vector3::new(-0.25, 0.1, 2.1), 0.2),
-        ];
-        let ref_img = render(&k, w, h, &reference);
-        let imgs: Vec<GreyImage> = cams.iter().map(|c| render(&k, w, h, c)).collect();
+        let KernelScene {
+            w,
+            h,
+            k,
+            reference,
+            cams,
+            ref_img,
+            imgs,
+        } = kernel_scene(0.2);
         let maps: Vec<DepthMap> = cams.iter().map(|c| plane_depths(&k, w, h, c)).collect();
         let cfg = PatchMatchConfig {
             iterations: 2,
