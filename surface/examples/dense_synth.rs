@@ -8,11 +8,14 @@
 
 #[path = "shared/dense_keys.rs"]
 mod dense_keys;
+#[path = "shared/dense_views.rs"]
+mod dense_views;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use dense_keys::set_dense_key;
+use dense_views::dense_views;
 use fresco_core::ply::{PlyReader, read_mesh};
 use fresco_core::{NoProgress, colmap};
 use fresco_surface::dense::{
@@ -99,16 +102,7 @@ fn fuse_again(
     use fresco_surface::dense::{DenseLayout, DenseView, depth_map_file, fusion};
     let layout = DenseLayout::new(out);
     let rec = colmap::read_model(&layout.sparse())?;
-    let views: Vec<DenseView> = rec
-        .images
-        .values()
-        .map(|im| DenseView {
-            image_id: im.id,
-            name: im.name.clone(),
-            camera: rec.cameras[&im.camera_id].clone(),
-            cam_from_world: im.cam_from_world,
-        })
-        .collect();
+    let views: Vec<DenseView> = dense_views(&rec);
     let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(layout.summary())?)?;
     let neighbours: Vec<Vec<usize>> = views
         .iter()

@@ -5,6 +5,8 @@
 
 #[path = "shared/dense_keys.rs"]
 mod dense_keys;
+#[path = "shared/dense_views.rs"]
+mod dense_views;
 #[path = "shared/temple_parts.rs"]
 mod temple_parts;
 
@@ -12,6 +14,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dense_keys::set_dense_key;
+use dense_views::dense_views;
 use fresco_core::colmap;
 use fresco_core::photo::load_photo;
 use fresco_core::ply::read_mesh;
@@ -34,16 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mesh = read_mesh(dataset.join("mesh.ply"))?;
     let rec = colmap::read_model(&dense.join("sparse"))?;
     let layout = DenseLayout::new(&dense);
-    let views: Vec<DenseView> = rec
-        .images
-        .values()
-        .map(|im| DenseView {
-            image_id: im.id,
-            name: im.name.clone(),
-            camera: rec.cameras[&im.camera_id].clone(),
-            cam_from_world: im.cam_from_world,
-        })
-        .collect();
+    let views: Vec<DenseView> = dense_views(&rec);
     let choices = select_views(&views, &rec, vs);
     let choice = &choices[r];
     let grey = |v: usize| load_photo(&layout.image(&views[v].name)).map(|p| p.grey);
