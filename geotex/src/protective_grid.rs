@@ -18,7 +18,9 @@
 //!    (eliminated in closed form), is minimised together with `smoothness` times the
 //!    squared differences of neighbouring slabs and `regularisation` times the distance to
 //!    the homogeneous scale, subject to the slabs of each axis adding up to the target size.
-//!    Scales below `min_scale` times the homogeneous one are held there (active set).
+//!    Scales below `min_scale` times the homogeneous one are held there (active set). The
+//!    texture method (paper 002) adds, per texture region and axis, that the slabs the
+//!    region spans scale at least by the homogeneous factor ([`optimise_keeping_regions`]).
 //! 4. Space deformation: each coordinate maps through a monotone cubic (Fritsch–Carlson)
 //!    through the new grid planes with the slab scales as slopes, so the mesh deforms
 //!    smoothly and any mesh (many components, non-manifold) can be resized.
@@ -235,6 +237,36 @@ pub fn optimise(
     size: &Vector3<f64>,
     cfg: &GridConfig,
 ) -> Result<GridDeformation, GeotexError> {
+    optimise_keeping_regions(mesh, normals, curvatures, &[], size, cfg)
+}
+
+/// [`optimise`] where no texture region comes out relatively smaller than the model along
+/// any axis (`labels`: 0 base, `k` region `k`, per vertex of `mesh`; empty: none): along
+/// each axis, the slabs a region spans must together scale by at least the homogeneous
+/// factor, a linear inequality beside the target size (spans covering the whole axis are
+/// the target size already), handled by the same active set as the slabs' lower bounds.
+///
+/// Why (paper 002 §4, figure 4(d): the texture method "not only preserve[s] the size of
+/// each screw thread, but also guarantee[s] the relative size of screw thread part"):
+/// Kraevoy's energy protects the base's features, and on a base whose vulnerable cells
+/// lie at the ends of every axis it can pay for them with the texture. The bumpy box's
+/// twelve edges all lie in end slabs, and each edge ties the end slabs of the two axes
+/// across it (a box edge along `x` is slippable along `x`, so it ties `y` to `z` only,
+/// but the vertical edges at the corners tie `x` to `y`); the six end slabs then scale
+/// alike, 1.29 for a 2x stretch along `x`, and the middle slabs of the kept axes give way
+/// (0.84 along `y`): the bump patches come out 0.94x as wide along `y` as the input's,
+/// and the synthesis, whose border band holds the patch's outer rows of bumps, squeezes
+/// the rows between them. A region may still grow relatively (the threaded cylinder's
+/// thread slabs take 2.46x of a 2x stretch, its protected cap rims 1x): re-synthesis adds
+/// elements where a region grows, and the constraint then stays inactive.
+pub fn optimise_keeping_regions(
+    mesh: &Mesh,
+    normals: &[Vector3<f64>],
+    curvatures: &Curvatures,
+    labels: &[u32],
+    size: &Vector3<f64>,
+    cfg: &GridConfig,
+) -> Result<GridDeformation, GeotexError> {
     cfg.check()?;
     let bbox = mesh.bounding_box().ok_or(GeotexError::EmptyMesh)?;
     let extent = bbox.extent();
@@ -264,6 +296,27 @@ pub fn optimise(
             (((p[a] - bbox.min[a]) / widths[a]).floor().max(0.0) as usize).min(counts[a] - 1)
         })
     };
+    // The slab span `(axis, first, last)` of each texture region along each axis; spans
+    // covering the whole axis left out (the target size holds them), repeats merged.
+    let regions = labels.iter().copied().max().unwrap_or(0);
+    let mut spans: Vec<(usize, usize, usize)> = Vec::new();
+    for r in 1..=regions {
+        let (mut first, mut last) = ([usize::MAX; 3], [0usize; 3]);
+        for (p, _) in mesh.positions.iter().zip(labels).filter(|(_, l)| **l == r) {
+            let c = cell_of(p);
+            for a in 0..3 {
+                first[a] = first[a].min(c[a]);
+                last[a] = last[a].max(c[a]);
+            }
+        }
+        for a in 0..3 {
+            if first[a] != usize::MAX && (first[a] > 0 || last[a] + 1 < counts[a]) {
+                spans.push((a, first[a], last[a]));
+            }
+        }
+    }
+    spans.sort_unstable();
+    spans.dedup();
     let cell_size = (widths[0] * widths[1] * widths[2]).cbrt();
     let vul = vulnerability(mesh, normals, curvatures, counts, cell_of, cell_size);
 
@@ -320,11 +373,21 @@ pub fn optimise(
         }
     };
     let mut scales = DVector::<f64>::zeros(m);
-    for _round in 0..=m {
+    let in_span = |s: usize, &(a, first, last): &(usize, usize, usize)| {
+        axis_of(s) == a && (first..=last).contains(&(s - offset[a]))
+    };
+    // Region spans whose inequality holds as an equality (the active set).
+    let mut active = vec![false; spans.len()];
+    // Each round activates bounds or spans, or, when nothing is left to activate, releases
+    // the spans whose multiplier says they do not bind; the rounds are capped (without
+    // spans, one per slab at most, as before).
+    for _round in 0..=2 * (m + spans.len()) {
         let free: Vec<usize> = (0..m).filter(|&s| held[s].is_none()).collect();
         let nf = free.len();
-        let mut kkt = DMatrix::<f64>::zeros(nf + 3, nf + 3);
-        let mut rhs = DVector::<f64>::zeros(nf + 3);
+        let rows: Vec<usize> = (0..spans.len()).filter(|&k| active[k]).collect();
+        let nc = 3 + rows.len();
+        let mut kkt = DMatrix::<f64>::zeros(nf + nc, nf + nc);
+        let mut rhs = DVector::<f64>::zeros(nf + nc);
         for (r, &s) in free.iter().enumerate() {
             rhs[r] = b[s];
             for (c, &t) in free.iter().enumerate() {
@@ -338,6 +401,29 @@ pub fn optimise(
             let a = axis_of(s);
             kkt[(r, nf + a)] = widths[a];
             kkt[(nf + a, r)] = widths[a];
+            for (j, &k) in rows.iter().enumerate() {
+                if in_span(s, &spans[k]) {
+                    kkt[(r, nf + 3 + j)] = widths[a];
+                    kkt[(nf + 3 + j, r)] = widths[a];
+                }
+            }
+        }
+        for (j, &k) in rows.iter().enumerate() {
+            let (a, first, last) = spans[k];
+            let row = nf + 3 + j;
+            if !free.iter().any(|&s| in_span(s, &spans[k])) {
+                // Every slab of the span held at its bound: nothing left to constrain.
+                kkt[(row, row)] = 1.0;
+                continue;
+            }
+            rhs[row] = homogeneous[a] * (last + 1 - first) as f64 * widths[a];
+            for (t, held_t) in held.iter().enumerate() {
+                if let Some(value) = *held_t
+                    && in_span(t, &spans[k])
+                {
+                    rhs[row] -= value * widths[a];
+                }
+            }
         }
         for a in 0..3 {
             rhs[nf + a] = if extent[a] > 0.0 { size[a] } else { widths[a] };
@@ -367,6 +453,24 @@ pub fn optimise(
             if scales[s] < bound {
                 held[s] = Some(bound);
                 changed = true;
+            }
+        }
+        for (k, &(a, first, last)) in spans.iter().enumerate() {
+            let span: f64 = (first..=last).map(|i| scales[offset[a] + i]).sum();
+            let bound = homogeneous[a] * (last + 1 - first) as f64;
+            if !active[k] && span < bound * (1.0 - 1e-9) {
+                active[k] = true;
+                changed = true;
+            }
+        }
+        if !changed {
+            // KKT rows `Q s + Aᵀλ = b` of `min sᵀQs − 2bᵀs`: an inequality `A s ≥ c` binds
+            // with `λ ≤ 0`; a positive `λ` holds the span down, so it is released.
+            for (j, &k) in rows.iter().enumerate() {
+                if solution[nf + 3 + j] > 1e-12 {
+                    active[k] = false;
+                    changed = true;
+                }
             }
         }
         if !changed {
@@ -447,6 +551,69 @@ mod tests {
                 assert!((s - 1.0).abs() < 0.15, "{s}");
             }
         }
+    }
+
+    /// The slab indices of axis `a` that the vertices labelled `r` fall in.
+    fn span_of(
+        d: &GridDeformation,
+        mesh: &Mesh,
+        labels: &[u32],
+        r: u32,
+        a: usize,
+    ) -> (usize, usize) {
+        let n = d.scales[a].len();
+        let slab = |x: f64| (d.before[a].partition_point(|&p| p <= x).max(1) - 1).min(n - 1);
+        let mut span = (usize::MAX, 0);
+        for (p, _) in mesh.positions.iter().zip(labels).filter(|(_, l)| **l == r) {
+            span = (span.0.min(slab(p[a])), span.1.max(slab(p[a])));
+        }
+        span
+    }
+
+    #[test]
+    fn kept_regions_come_out_no_smaller_relative_to_the_model() {
+        // The bumpy box's base (the generator's, exact) stretched 2x along x, its two bump
+        // patches as regions. Kraevoy's grid ties the box's end slabs together through
+        // its edges and squeezes the kept axes' middle slabs, under the patches; kept, the
+        // slabs a patch spans scale at least like the whole along every axis.
+        let model = gt::bumpy_box(&gt::BumpyBoxConfig::default());
+        let mesh = &model.base_mesh;
+        let labels: Vec<u32> = model.labels.iter().map(|&l| l as u32).collect();
+        let (_, graph) = prepare(mesh).unwrap();
+        let normals = mesh.vertex_normals();
+        let curv = principal_curvatures(mesh, &normals, 2.0 * graph.mean_edge, 6.0);
+        let extent = mesh.bounding_box().unwrap().extent();
+        let size = Vector3::new(2.0 * extent.x, extent.y, extent.z);
+        let cfg = GridConfig::default();
+        let plain = optimise(mesh, &normals, &curv, &size, &cfg).unwrap();
+        let kept = optimise_keeping_regions(mesh, &normals, &curv, &labels, &size, &cfg).unwrap();
+        let homogeneous = [2.0, 1.0, 1.0];
+        let span_scale = |d: &GridDeformation, r: u32, a: usize| {
+            let (first, last) = span_of(d, mesh, &labels, r, a);
+            d.scales[a][first..=last].iter().sum::<f64>() / (last + 1 - first) as f64
+        };
+        let squeezed = span_scale(&plain, 1, 1);
+        assert!(squeezed < 0.97, "plain grid, patch 1 along y: {squeezed}");
+        assert!((kept.size() - size).norm() < 1e-9);
+        for r in 1..=2 {
+            for (a, h) in homogeneous.iter().enumerate() {
+                let s = span_scale(&kept, r, a);
+                assert!(s > h - 1e-9, "region {r} axis {a}: {s}");
+            }
+        }
+        // The constraint only binds: a grid that already keeps the regions is unchanged.
+        let thread = gt::threaded_cylinder(&gt::ThreadedCylinderConfig::default());
+        let mesh = &thread.base_mesh;
+        let labels: Vec<u32> = thread.labels.iter().map(|&l| l as u32).collect();
+        let (_, graph) = prepare(mesh).unwrap();
+        let normals = mesh.vertex_normals();
+        let curv = principal_curvatures(mesh, &normals, 2.0 * graph.mean_edge, 6.0);
+        let extent = mesh.bounding_box().unwrap().extent();
+        let size = Vector3::new(extent.x, extent.y, 2.0 * extent.z);
+        let plain = optimise(mesh, &normals, &curv, &size, &cfg).unwrap();
+        let kept = optimise_keeping_regions(mesh, &normals, &curv, &labels, &size, &cfg).unwrap();
+        assert!(span_scale(&plain, 1, 2) > 2.0);
+        assert_eq!(plain, kept);
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //! methods of its figures 4-7.
 //!
 //! - [`Method::Texture`] (paper 002): curvature → segmentation → extraction (fairing,
-//!   displacement) → non-homogeneous resizing of the base → bisection of stretched texture
+//!   displacement) → non-homogeneous resizing of the base (Kraevoy's grid, with no texture
+//!   region coming out relatively smaller than the model) → bisection of stretched texture
 //!   triangles → re-synthesis of each region's displacement → displaced along the new
 //!   normals. A mesh where no texture is found is resized uniformly, with a notice.
 //! - [`Method::Kraevoy`]: the protective grid on the textured mesh itself.
@@ -28,7 +29,7 @@ use crate::graph::{VertexGraph, prepare};
 use crate::measure::{
     FeatureSizes, SurfaceDistance, feature_sizes_of, surface_distance, texture_over, trend_scales,
 };
-use crate::protective_grid::{GridConfig, GridDeformation, optimise};
+use crate::protective_grid::{GridConfig, GridDeformation, optimise, optimise_keeping_regions};
 use crate::refine::{carry, nalgebra_mid, refine};
 use crate::segmentation::{Segmentation, SegmentationConfig, TextureRegion, segment};
 use crate::synthesis::{
@@ -483,7 +484,7 @@ pub fn resize(
                             }
                         })
                         .collect();
-                    optimise(&base, &normals, &curv, &base_size, &cfg.grid)
+                    optimise_keeping_regions(&base, &normals, &curv, &labels, &base_size, &cfg.grid)
                 },
             )?;
             let (out, out_labels, rest, synthesis) =
