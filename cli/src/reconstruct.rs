@@ -95,7 +95,7 @@ pub fn run(args: ReconstructArgs, ctx: &crate::Context) -> anyhow::Result<serde_
             init_min_inliers: SfmConfig::default().mapper.init_min_inliers,
             refine_principal_point: args.refine_principal_point,
             no_merge_through_matches: false,
-            refine_tracks: SfmConfig::default().track_refinement.enabled,
+            refine_tracks: crate::sfm::RefineTracks::Off,
         },
         ctx,
     )?;

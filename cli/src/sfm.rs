@@ -8,6 +8,7 @@ use anyhow::{Context as _, bail};
 use clap::Args;
 use fresco_core::CameraModel;
 use fresco_sfm::mapping::reconstruct::{CameraMode, SfmConfig, run_sfm};
+use fresco_sfm::mapping::track_refinement::TrackRefinementMode;
 
 #[derive(Args, Debug)]
 pub struct SfmArgs {
@@ -40,10 +41,23 @@ pub struct SfmArgs {
     pub no_merge_through_matches: bool,
     /// Align every track's keypoints onto one reference observation by affine patch
     /// alignment before a last global adjustment (issue 18: removes most of the
-    /// view-dependent keypoint error on curved surfaces; off by default, it costs 25-50% more
-    /// CPU time of the whole reconstruction).
-    #[arg(long)]
-    pub refine_tracks: bool,
+    /// view-dependent keypoint error on curved surfaces, which biases a focal length estimated
+    /// without a prior): `on` (also `--refine-tracks` alone), `off` (the default: on
+    /// templeSparseRing, which has no EXIF, it costs 12% more CPU time), or `auto`: when some
+    /// photo has no focal length from EXIF or a K file.
+    /// Write `--refine-tracks=auto` (with `=`): the bare flag means `on`, and the workspace
+    /// after it stays the workspace.
+    #[arg(long, value_enum, default_value_t = RefineTracks::Off, num_args = 0..=1,
+          default_missing_value = "on", require_equals = true)]
+    pub refine_tracks: RefineTracks,
+}
+
+/// `--refine-tracks` values (see [`TrackRefinementMode`]).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefineTracks {
+    Off,
+    On,
+    Auto,
 }
 
 pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Value> {
@@ -69,7 +83,11 @@ pub fn run(args: SfmArgs, ctx: &crate::Context) -> anyhow::Result<serde_json::Va
     config.mapper.init_min_inliers = args.init_min_inliers;
     config.mapper.bundle.refine_principal_point = args.refine_principal_point;
     config.mapper.merge_through_matches = !args.no_merge_through_matches;
-    config.track_refinement.enabled = args.refine_tracks;
+    config.track_refinement.mode = match args.refine_tracks {
+        RefineTracks::On => TrackRefinementMode::Always,
+        RefineTracks::Auto => TrackRefinementMode::WhenFocalEstimated,
+        RefineTracks::Off => TrackRefinementMode::Off,
+    };
     let bars = crate::progress::Bars::new(ctx);
     // Every SfmError names the workspace or the file at fault: the context does not repeat it.
     let summary = run_sfm(&args.workspace, &config, &bars).context("structure from motion")?;

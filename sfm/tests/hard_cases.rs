@@ -35,6 +35,12 @@
 //! texture max 0.292 deg (0.386), 4x max 0.130 deg (0.124) but focal 5.4% off (5.7%), 0.5x max
 //! 0.157 deg (0.226) and focal 0.39% off (1.15%), weak at two places max 0.269 deg (0.321),
 //! undamaged ring max 0.116 deg (0.089), focal 1.6% (1.5%).
+//!
+//! With track refinement on (`TrackRefinementMode::Always`, off by default; session 12,
+//! release), every case is better but the 0.5x case's rotation max at 640x480 (0.157 ->
+//! 0.164 deg): rotation max 320x240 / 640x480: weak texture 0.203 / 0.117, 4x 0.164 / 0.059
+//! (focal 0.04% / 0.85% off), 0.5x 0.199 / 0.164, irregular ring 0.281, weak at two places
+//! 0.263 / 0.099, undamaged ring 0.252 / 0.064 deg.
 
 use std::path::Path;
 
@@ -44,6 +50,7 @@ use fresco_sfm::evaluate::{PoseEvaluation, evaluate_poses};
 use fresco_sfm::features::photo_folder::{FeaturesConfig, extract_photo_folder};
 use fresco_sfm::focal_prior::FocalSource;
 use fresco_sfm::mapping::reconstruct::{SfmConfig, SfmSummary, read_model_or_workspace, run_sfm};
+use fresco_sfm::mapping::track_refinement::TrackRefinementMode;
 use fresco_sfm::matching::workspace_matching::{MatchStageConfig, match_workspace};
 
 const VIEWS: u32 = 16;
@@ -156,6 +163,37 @@ fn no_exif_focal_four_times_the_prior() {
     assert!(e.median_focal_error <= 0.15, "{e:?}");
 }
 
+/// The sfm stage's settings with track refinement always on.
+fn refining() -> SfmConfig {
+    let mut sfm = SfmConfig::default();
+    sfm.track_refinement.mode = TrackRefinementMode::Always;
+    sfm
+}
+
+/// The 4x case above with track refinement on (`track_refinement.rs`; off by default, see
+/// `TrackRefinementConfig::mode`). Measured (session 12, release): focal 1536.6 px against
+/// 1536 (0.04% off; 10.3% without), rotation max 0.164 degrees (0.395 without); on five other
+/// seeds of this scene 5.1, 5.5, 0.2, 2.7, 6.5% (without: 15-22%): at 320x240 the fixating
+/// ring's own spread is about 3.4% (see above), so 2% is met on this seed only. Asserted:
+/// within 5%, which fails if the refinement loses half of its effect here. Run in the
+/// `WhenFocalEstimated` mode, which must refine here (the photos have no EXIF): the same
+/// result as `Always`.
+#[test]
+fn no_exif_focal_four_times_the_prior_with_track_refinement() {
+    let mut sfm_config = SfmConfig::default();
+    sfm_config.track_refinement.mode = TrackRefinementMode::WhenFocalEstimated;
+    let (sfm, e, _) = reconstruct_with(
+        &scene(|c| c.focal = Some(4.0 * 384.0)),
+        &FeaturesConfig::default(),
+        &sfm_config,
+        |_| {},
+    );
+    println!("track refinement: {:?}", sfm.track_refinement);
+    assert!(sfm.track_refinement.is_some(), "no EXIF: refined");
+    assert_one_accurate_model(&sfm, &e);
+    assert!(e.median_focal_error <= 0.05, "{e:?}");
+}
+
 /// (b) No EXIF, a wide field of view: the true focal length half the default prior. One model
 /// of 16; focal 191.5 px against 192 (0.26% off; 3.8% with the outline kept), its standard
 /// deviation 1.7 px; rotation max 0.298 degrees (0.61 with the outline kept).
@@ -249,7 +287,7 @@ fn weak_texture_on_dark_background_at_640x480() {
 }
 
 #[test]
-#[ignore = "640x480 measurement (heavy); focal 5.4% off, not met: a bias of the keypoints (see the 4x case above)"]
+#[ignore = "640x480 measurement (heavy); focal 5.4% off with default settings, not met: a bias of the keypoints (see the 4x case above), met with track refinement (below)"]
 fn no_exif_focal_four_times_the_prior_at_640x480() {
     let (sfm, e, _) = reconstruct(&scene_at(640, 480, |c| c.focal = Some(4.0 * 768.0)), |_| {});
     assert_one_accurate_model(&sfm, &e);
@@ -257,25 +295,20 @@ fn no_exif_focal_four_times_the_prior_at_640x480() {
 }
 
 /// The same scene with the keypoints of every track aligned onto one reference observation
-/// (`track_refinement.rs`, off by default): the view-dependent keypoint error on the curved
-/// surface shrinks, and with it the focal length's bias. Measured (session 11): 5.36% off
-/// without, 2.75% with; asserted: the refined error is at most 3/4 of the unrefined one (the
-/// run-to-run spread of the focal error at this size is about 1%, so 5.4% -> 4% would be
-/// within noise of no change; the margin leaves room for other pipeline changes).
+/// (`track_refinement.rs`, `TrackRefinementMode::Always`; off by default): the view-dependent
+/// keypoint error on the curved surface goes, and with it the focal length's bias. Measured
+/// (session 12, release): 0.85% off (5.36% without); on five other seeds of the same scene
+/// 1.98, 0.69, 1.28, 0.86, 1.46% (without: 3.53, 3.14, 4.17, 2.55, 2.65%): the 2% line,
+/// met with the refinement on. Rotation max 0.059 degrees (0.130 without). Not ignored, unlike
+/// the other 640x480 cases: 20 s in the test profile (19.6 CPU-s at load 3.6), and it is the
+/// test of the line.
 #[test]
-#[ignore = "640x480 measurement (heavy, two reconstructions); track refinement is not the default"]
-fn track_refinement_reduces_the_focal_bias_at_640x480() {
+fn no_exif_focal_four_times_the_prior_at_640x480_with_track_refinement() {
     let scene = scene_at(640, 480, |c| c.focal = Some(4.0 * 768.0));
-    let (_, plain, _) = reconstruct(&scene, |_| {});
-    let mut sfm = SfmConfig::default();
-    sfm.track_refinement.enabled = true;
-    let (summary, refined, _) = reconstruct_with(&scene, &FeaturesConfig::default(), &sfm, |_| {});
+    let (summary, e, _) = reconstruct_with(&scene, &FeaturesConfig::default(), &refining(), |_| {});
     println!("track refinement: {:?}", summary.track_refinement);
-    assert_one_accurate_model(&summary, &refined);
-    assert!(
-        refined.median_focal_error <= 0.75 * plain.median_focal_error,
-        "refined {refined:?}, plain {plain:?}"
-    );
+    assert_one_accurate_model(&summary, &e);
+    assert!(e.median_focal_error <= 0.02, "{e:?}");
 }
 
 #[test]

@@ -9,7 +9,8 @@
 //!   (`focal_from_f.rs`) when that differs from the default by more than the tolerance, and
 //!   its pairs' relative poses (derived under the default) are then estimated again;
 //! - [`run_sfm`]: mapping ([`crate::mapping::mapper::map`]), optional track refinement
-//!   (`track_refinement.rs`, off by default, followed by a global adjustment), optional
+//!   (`track_refinement.rs`, off by default; on, or when a focal length has no prior from
+//!   the photos; followed by a global adjustment), optional
 //!   silhouette constraints (`silhouette.rs`, followed by a global adjustment), then the
 //!   models are written to
 //!   `<ws>/sparse/0` (the largest), `<ws>/sparse/1`, ... (COLMAP text, each folder replaced as a
@@ -41,8 +42,8 @@ use crate::mapping::mapper::{
     bundle_config, map,
 };
 use crate::mapping::track_refinement::{
-    ImagePyramid, KeypointShape, RefinementImage, TrackRefinementConfig, TrackRefinementSummary,
-    refine_tracks,
+    ImagePyramid, KeypointShape, RefinementImage, TrackRefinementConfig, TrackRefinementMode,
+    TrackRefinementSummary, refine_tracks,
 };
 use crate::workspace::{ImageEntry, read_features, read_images, read_matches};
 
@@ -207,7 +208,7 @@ pub struct SfmSummary {
     /// Mean number of images observing a 3D point of the main model.
     pub mean_track_length: f64,
     pub silhouette_points: Option<usize>,
-    /// What the track refinement did on the main model (None: off).
+    /// What the track refinement did on the main model (None: not run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub track_refinement: Option<TrackRefinementSummary>,
     pub models: Vec<ModelSummary>,
@@ -771,7 +772,15 @@ pub fn run_sfm(
             reason,
         });
     }
-    let track_refinement = if config.track_refinement.enabled {
+    let refine = match config.track_refinement.mode {
+        TrackRefinementMode::Off => false,
+        TrackRefinementMode::Always => true,
+        TrackRefinementMode::WhenFocalEstimated => read_images(ws)?
+            .images
+            .iter()
+            .any(|im| im.prior.source == FocalSource::Default),
+    };
+    let track_refinement = if refine {
         Some(refine_models(
             ws,
             &mut out.models,
