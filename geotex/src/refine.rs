@@ -72,8 +72,10 @@ impl std::hash::Hasher for EdgeHasher {
 
 type EdgeMap = HashMap<(u32, u32), EdgeFaces, std::hash::BuildHasherDefault<EdgeHasher>>;
 
-/// Splits every edge with at least one end where `eligible` (by label) longer than
-/// `max_length`, until none is left; new vertices take the label of their edge's ends
+/// Splits every edge with an end in a texture region (a non-zero label) longer than
+/// `max_length`, and every edge on a face touching one longer than 1.5 `max_length` (see
+/// the comment in the body: without it the splitting need not end), longest first, until
+/// none is left; new vertices take the label of their edge's ends
 /// (the non-zero one if they differ, the smaller if both are non-zero). Returns the
 /// parents of the new vertices. `limit` bounds the number of new vertices.
 pub fn refine(
@@ -92,20 +94,41 @@ pub fn refine(
                 .push(f as u32);
         }
     }
-    let long = |positions: &[Point3<f64>], labels: &[u32], a: u32, b: u32| -> Option<u64> {
-        let (la, lb) = (labels[a as usize], labels[b as usize]);
-        if la == 0 && lb == 0 {
-            return None;
-        }
+    // An edge is split when it is longer than `max_length` and one of its ends is in a
+    // texture region, or when it lies on a face touching a texture region and is longer
+    // than 1.5 `max_length`. The second case ends a cascade that otherwise never stops: on
+    // a border face (A, B, c), A and B on the base and c in the texture, splitting Ac at m
+    // leaves (A, m, B) with a new edge mB; splitting that leaves (m, m', A) with m'A, and
+    // so on: the new vertices converge on the 1/3 and 2/3 points of AB, the new edges on
+    // 2/3 |AB|, so when |AB| > 1.5 `max_length` they never get short (on the scaly blob's
+    // cap, stretched 7x, it used the whole vertex budget on one edge). Below that the
+    // cascade ends by itself, and AB is left alone as before.
+    let long = |positions: &[Point3<f64>],
+                labels: &[u32],
+                faces: &[[u32; 3]],
+                edge_faces: &EdgeMap,
+                a: u32,
+                b: u32|
+     -> Option<u64> {
         let len = (positions[a as usize] - positions[b as usize]).norm();
-        (len > max_length).then_some(len.to_bits())
+        let eligible = if labels[a as usize] != 0 || labels[b as usize] != 0 {
+            len > max_length
+        } else {
+            len > 1.5 * max_length
+                && edge_faces.get(&(a, b)).is_some_and(|e| {
+                    e.as_slice()
+                        .iter()
+                        .any(|&f| faces[f as usize].iter().any(|&v| labels[v as usize] != 0))
+                })
+        };
+        eligible.then_some(len.to_bits())
     };
     // Longest first; ties by vertex ids so that the order is deterministic.
     let mut heap: BinaryHeap<(u64, Reverse<(u32, u32)>)> = BinaryHeap::new();
     let mut initial: Vec<(u32, u32)> = edge_faces.keys().copied().collect();
     initial.sort_unstable();
     for (a, b) in initial {
-        if let Some(l) = long(positions, labels, a, b) {
+        if let Some(l) = long(positions, labels, faces, &edge_faces, a, b) {
             heap.push((l, Reverse((a, b))));
         }
     }
@@ -152,7 +175,7 @@ pub fn refine(
         }
         for (x, y) in touched {
             let (x, y) = key(x, y);
-            if let Some(l) = long(positions, labels, x, y) {
+            if let Some(l) = long(positions, labels, faces, &edge_faces, x, y) {
                 heap.push((l, Reverse((x, y))));
             }
         }
@@ -221,5 +244,47 @@ mod tests {
             let (a, b) = (f[0] as usize, f[1] as usize);
             labels[a] == 0 && labels[b] == 0 && (positions[a] - positions[b]).norm() > 0.2
         }));
+    }
+
+    #[test]
+    fn a_long_base_edge_beside_the_texture_is_split_and_the_refinement_ends() {
+        // A 10 x 10 grid stretched 8x along x (edges 0.8 along x, 0.1 along y), texture on
+        // the vertices of the middle row: the faces of the rows beside it have a base edge
+        // along x (0.8, over 6x the bound) opposite a texture vertex. Splitting only edges
+        // with a texture end never ends there (the new vertices pile up on that base edge;
+        // see `refine`) and stops at the limit only; with the base edges of the faces
+        // touching the texture split beyond 1.5 times the bound it ends after a few hundred.
+        let mesh = fresco_datasets::shapes::grid_patch(10, |x, y| Point3::new(8.0 * x, y, 0.0));
+        let mut positions = mesh.positions.clone();
+        let mut faces = mesh.faces.clone();
+        let mut labels: Vec<u32> = positions
+            .iter()
+            .map(|p| u32::from((p.y - 0.5).abs() < 1e-9))
+            .collect();
+        assert!(labels.iter().any(|&l| l != 0));
+        let bound = 0.12;
+        let limit = 100_000;
+        let parents = refine(&mut positions, &mut faces, &mut labels, bound, limit);
+        assert!(!parents.is_empty());
+        assert!(parents.len() < limit / 10, "{} splits", parents.len());
+        // Edges with a texture end are within the bound, the other edges of the faces
+        // touching the texture within 1.5 times it.
+        for f in &faces {
+            if f.iter().any(|&v| labels[v as usize] != 0) {
+                for k in 0..3 {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    let factor = if labels[a] != 0 || labels[b] != 0 {
+                        1.0
+                    } else {
+                        1.5
+                    };
+                    assert!((positions[a] - positions[b]).norm() <= factor * bound + 1e-12);
+                }
+            }
+        }
+        let refined = Mesh::from_triangles(positions, faces);
+        let topo = Topology::build(&refined).unwrap();
+        assert!(topo.non_manifold_edges().is_empty());
+        assert!(topo.inconsistently_oriented_edges().is_empty());
     }
 }
