@@ -15,6 +15,8 @@
 //!    no fused point covers is classed by the depth maps of the views that see it: none has a
 //!    depth there, all are wrong, fewer than `min_views` are right, or enough are right and
 //!    fusion did not join them.
+//!    It is also classed by the distance of its nearest fused point (a multiple of the 0.5%
+//!    threshold): a thin band just beyond the fused points, or a hole.
 //!
 //! Pictures per view in `<picture dir>`: `depth_<view>.png` (green: depth within 0.3% of the
 //! diagonal; red: nearer than the truth; magenta: farther; blue: surface without depth; white:
@@ -408,6 +410,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Rgb([0, 255, 255]),
         Rgb([255, 0, 255]),
     ];
+    let mut near_miss: BTreeMap<u32, [f64; 4]> = BTreeMap::new();
     let face_of = &samples.face;
     for (s, p) in samples.points.iter().enumerate() {
         if seen[s] < 2 {
@@ -431,6 +434,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         e.1 += w;
         b.1 += w;
+        // How far the nearest fused point is: near misses (just beyond the threshold) or
+        // surface with no point anywhere near.
+        let ratio = nearest[s].map_or(f64::INFINITY, |n| n.distance / comp);
+        let slot = match ratio {
+            r if r <= 1.5 => 0,
+            r if r <= 2.0 => 1,
+            r if r <= 3.0 => 2,
+            _ => 3,
+        };
+        near_miss.entry(bucket).or_insert([0.0; 4])[slot] += w;
         // The dense views that see the sample and what their depth maps hold there.
         let (mut with_depth, mut right_views) = (0, Vec::new());
         let mut seeing = Vec::new();
@@ -479,6 +492,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 palette[class],
             );
         }
+    }
+    let seen_total: f64 = by_bucket.values().map(|e| e.0).sum();
+    println!(
+        "\n## Missing surface by the distance of its nearest fused point (x the 0.5% threshold), % of the seen surface"
+    );
+    println!("| cameras seeing | 1-1.5x | 1.5-2x | 2-3x | > 3x |");
+    println!("|---|---|---|---|---|");
+    for (k, m) in &near_miss {
+        println!(
+            "| {k} | {} |",
+            m.iter()
+                .map(|a| format!("{:.2}%", 100.0 * a / seen_total))
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
     }
     for (v, pic) in views.iter().zip(&missing_pics) {
         pic.save(pictures.join(format!("missing_{}", v.name)))?;

@@ -31,6 +31,7 @@ pub fn set_dense_key(
         "min_ref_std" => pm.min_ref_std = value.parse()?,
         "max_sources" => config.view_selection.max_sources = value.parse()?,
         "min_views" => config.fusion.min_views = value.parse()?,
+        "one_short_if_clear" => config.fusion.one_short_if_clear = value.parse()?,
         "max_reproj_px" => config.fusion.max_reproj_px = value.parse()?,
         "max_depth_error" => config.fusion.max_depth_error = value.parse()?,
         "max_normal_deg" => config.fusion.max_normal_deg = value.parse()?,
