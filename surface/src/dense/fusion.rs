@@ -67,19 +67,19 @@ pub struct FusionConfig {
     pub min_views: usize,
     /// Keep a point one view short of `min_views` (two views at least) when it is hidden from
     /// the checked views that do not agree with it (see the module documentation) instead of
-    /// dropping it. Default true, so that with `min_views` 3 surface only two cameras see can
-    /// appear at all: on the synthetic temple (24 views at 640x480) 3.6% of the seen surface is
-    /// seen by exactly two cameras (the columns' limbs between other columns), which
-    /// `min_views` 3 alone leaves 7% complete. With it (and `window_radius` 2) the temple's
-    /// completeness rose from 92.24% to 93.31% (2 cameras: 6.9% -> 12.7%, 3: 20.2% -> 30.4%)
-    /// and its median / 90th-percentile error went from 0.039% / 0.214% to 0.043% / 0.234% of
-    /// the diagonal (precision 98.5% -> 98.2%); the blob's completeness from 94.73% to 95.60%,
-    /// the weakly textured temple's from 92.6% to 93.1% (90th percentile 0.342% -> 0.347%).
-    /// Keeping every such point that no view looks through gave the temple 93.80% but
-    /// 0.259%, and on templeSparseRing (4 sources) 2.3x the points, floaters around the
-    /// temple that hid its support plane from `support_plane.rs`; requiring the other views'
-    /// depth and two occluding views keeps that run's plane and 99.75% of its points inside
-    /// the published box (issue 13, session 12).
+    /// dropping it. Default false. On the synthetic temple (24 views at 640x480) 3.6% of the
+    /// seen surface is seen by exactly two cameras (the columns' limbs between other columns),
+    /// which `min_views` 3 alone leaves 7% complete; with this on (and `window_radius` 2) the
+    /// temple's completeness rose from 92.24% to 93.31% (2 cameras: 6.9% -> 12.7%) at a
+    /// median / 90th-percentile error of 0.043% / 0.234%, the blob's from 94.73% to 95.60%.
+    /// But on real photos it cost the texture: `fresco run` on templeSparseRing with
+    /// templeSR0005 / 0013 held out, gain-fitted PSNR 17.06 / 19.02 dB (SSIM 0.499 / 0.640)
+    /// off, 16.33 / 18.96 (0.480 / 0.666) on (window radius 3): the pairs it admits there
+    /// include stray surface that the Poisson mesh then carries into the held-out views.
+    /// Keeping every such point that no view looks through gave the synthetic temple 93.80%,
+    /// and templeSparseRing 2.3x the points, floaters that hid its support plane from
+    /// `support_plane.rs`; hence the other views' depth and two occluding views (issue 13,
+    /// session 12).
     pub one_short_if_clear: bool,
     /// Largest reprojection error, pixels. Default 2 (COLMAP's `max_reproj_error`).
     pub max_reproj_px: f64,
@@ -98,7 +98,7 @@ impl Default for FusionConfig {
     fn default() -> Self {
         FusionConfig {
             min_views: 3,
-            one_short_if_clear: true,
+            one_short_if_clear: false,
             max_reproj_px: 2.0,
             max_depth_error: 0.01,
             max_normal_deg: 10.0,

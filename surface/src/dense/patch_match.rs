@@ -15,7 +15,7 @@
 //!
 //! **Matching cost.** `1 - NCC` with bilateral weights (adaptive support weights, Yoon and
 //! Kweon 2006, as in Gipuma and ACMM) over a sparsely sampled window: every `window_step`-th
-//! pixel of a `(2 r + 1)^2` window (3x3 = 9 samples for the default r = 2, step 2). The weights
+//! pixel of a `(2 r + 1)^2` window (4x4 = 16 samples for r = 3, step 2). The weights
 //! `w_k = exp(-|I_k - I_p| / sigma_color - |k - p| / sigma_spatial)`, normalised to sum 1,
 //! and the reference's weighted, normalised values `a_k = w_k (I_k - mu) / sigma` are
 //! computed once per pixel visit and shared by every hypothesis and source, so that each
@@ -52,7 +52,7 @@
 //! **Speed.** The window cost (most of the time) runs in AVX2 intrinsics when the CPU has them
 //! (detected at run time; the build targets SSE2): the window's samples are packed 8 to a
 //! register, row after row (the 36 samples of a 6x6 window in 5 registers instead of 6 rows of
-//! 8 lanes; the default 3x3 window fills 2), the four bilinear neighbours of a sample one
+//! 8 lanes; the default 4x4 window fills 2), the four bilinear neighbours of a sample one
 //! 16-byte load from a copy of the source image that stores each pixel beside the one below
 //! it (eight loads and a transpose per register instead of gathers), with the portable code's
 //! operations in the same order and no FMA, so that both give the same depth maps bit for bit
@@ -82,7 +82,7 @@ const MAX_WINDOW: usize = LANES * LANES;
 /// PatchMatch settings; see the module documentation.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PatchMatchConfig {
-    /// Half size of the support window in pixels. Default 2 (5x5 pixels sampled 3x3).
+    /// Half size of the support window in pixels. Default 3 (7x7 pixels sampled 4x4).
     /// A slanted plane only fits a curved surface to second order, so its depth at the centre
     /// is biased away from the camera on a convex surface by about the window's sagitta,
     /// `(r / f)^2 d^2 / (2 R)` for curvature radius `R` (the front of a cylinder seen across
@@ -93,17 +93,15 @@ pub struct PatchMatchConfig {
     /// the synthetic temple's columns (radius 12 pixels) behind the truth by a median 0.16% of
     /// the scene's diagonal; radius 3 took its 90th-percentile error from 0.47% to 0.30% and
     /// made the weakly textured temple more complete too (issue 13, session 11). Radius 2
-    /// (same cost: the 9 samples fill the same two 8-lane registers as radius 3's 16) took
-    /// the temple's median / 90th percentile from 0.045% / 0.298% to 0.039% / 0.214% and its
-    /// completeness from 91.4% to 92.2% (the columns' limbs, seen by few cameras, are reached
-    /// closer), the weakly textured temple's from 0.065% / 0.445% / 92.0% to 0.055% / 0.342% /
-    /// 92.6%; the smooth blob lost 0.9 points of completeness (95.7% -> 94.7%, won back by
-    /// fusion's `one_short_if_clear`: 95.6%). Radius 2 at step 1 (5x5 samples, twice the
-    /// window cost) gave the temple 0.035% / 0.199% / 92.5%; radius 1 0.035% / 0.155% / 91.7%
-    /// (flat windows on the roof); radius 3 at the coarse scales with 2 at full resolution
-    /// 0.042% / 0.247% / 91.9% (issue 13, session 12).
+    /// (same cost: its 9 samples fill the same two 8-lane registers as radius 3's 16) took
+    /// the synthetic temple to 0.039% / 0.214% / 92.2% complete and the weakly textured
+    /// one to 0.055% / 0.342% / 92.6%, but cost the smooth blob 0.9 points of completeness
+    /// (95.7% -> 94.7%) and real photos their texture: `fresco run` on templeSparseRing with
+    /// templeSR0005 / 0013 held out, gain-fitted PSNR 16.33 -> 16.06 and 18.96 -> 18.90 dB
+    /// (with fusion's `one_short_if_clear` on in both; a noisier mesh, 2,321 charts against
+    /// 2,035), and sceaux 32% fewer fused points (issue 13, session 12).
     pub window_radius: usize,
-    /// Distance between window samples in pixels. Default 2 (3x3 samples at radius 2).
+    /// Distance between window samples in pixels. Default 2 (4x4 samples at radius 3).
     pub window_step: usize,
     /// Colour scale of the bilateral weights (grey levels in [0, 1]). Default 0.05.
     pub sigma_color: f32,
@@ -177,7 +175,7 @@ pub struct PatchMatchConfig {
 impl Default for PatchMatchConfig {
     fn default() -> Self {
         PatchMatchConfig {
-            window_radius: 2,
+            window_radius: 3,
             window_step: 2,
             sigma_color: 0.05,
             sigma_spatial: 12.0,
