@@ -63,9 +63,9 @@ fn assert_must_show(q: &CloudQuality, completeness: f64) {
 /// completeness 91.4%, precision 96.4%; session 10: 0.066% / 0.465%, 88.9%, 91.1%; session 12's
 /// window radius 2 and fusion's `one_short_if_clear`, both off by default because they cost
 /// real photos' texture: 0.043% / 0.234%, 93.3%, 98.2%). The missing surface is mostly seen
-/// by 2-4 cameras: the columns' limbs (seen between other columns at grazing incidence, 1-2 pixels wide), where
-/// no slanted-plane window fits and the depth maps are wrong; nearly all of it lies within
-/// 1-3 times the 0.5% threshold of a fused point (`dense_diagnose`).
+/// by 2-4 cameras: the columns' limbs (seen between other columns at grazing incidence, 1-2
+/// pixels wide), where no slanted-plane window fits and the depth maps are wrong; nearly all
+/// of it lies within 1-3 times the 0.5% threshold of a fused point (`dense_diagnose`).
 #[test]
 #[ignore = "heavy (about 60 CPU-s); misses: completeness 91.4% (p90 0.298% meets 0.3%; session 11)"]
 fn temple_24_views_meets_the_accuracy_and_completeness_goals() {
