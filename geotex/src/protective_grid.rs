@@ -570,6 +570,33 @@ mod tests {
         span
     }
 
+    /// A generator model's exact base (`base`, `labels` per vertex) stretched by `stretch`:
+    /// the plain grid, the grid keeping the regions, and the mean slab scale of region `r`'s
+    /// span along axis `a` under a grid.
+    fn plain_and_kept(
+        base: &Mesh,
+        labels: &[u32],
+        stretch: Vector3<f64>,
+    ) -> (GridDeformation, GridDeformation, Vector3<f64>) {
+        let (_, graph) = prepare(base).unwrap();
+        let normals = base.vertex_normals();
+        let curv = principal_curvatures(base, &normals, 2.0 * graph.mean_edge, 6.0);
+        let size = base
+            .bounding_box()
+            .unwrap()
+            .extent()
+            .component_mul(&stretch);
+        let cfg = GridConfig::default();
+        let plain = optimise(base, &normals, &curv, &size, &cfg).unwrap();
+        let kept = optimise_keeping_regions(base, &normals, &curv, labels, &size, &cfg).unwrap();
+        (plain, kept, size)
+    }
+
+    fn span_scale(d: &GridDeformation, mesh: &Mesh, labels: &[u32], r: u32, a: usize) -> f64 {
+        let (first, last) = span_of(d, mesh, labels, r, a);
+        d.scales[a][first..=last].iter().sum::<f64>() / (last + 1 - first) as f64
+    }
+
     #[test]
     fn kept_regions_come_out_no_smaller_relative_to_the_model() {
         // The bumpy box's base (the generator's, exact) stretched 2x along x, its two bump
@@ -579,25 +606,13 @@ mod tests {
         let model = gt::bumpy_box(&gt::BumpyBoxConfig::default());
         let mesh = &model.base_mesh;
         let labels: Vec<u32> = model.labels.iter().map(|&l| l as u32).collect();
-        let (_, graph) = prepare(mesh).unwrap();
-        let normals = mesh.vertex_normals();
-        let curv = principal_curvatures(mesh, &normals, 2.0 * graph.mean_edge, 6.0);
-        let extent = mesh.bounding_box().unwrap().extent();
-        let size = Vector3::new(2.0 * extent.x, extent.y, extent.z);
-        let cfg = GridConfig::default();
-        let plain = optimise(mesh, &normals, &curv, &size, &cfg).unwrap();
-        let kept = optimise_keeping_regions(mesh, &normals, &curv, &labels, &size, &cfg).unwrap();
-        let homogeneous = [2.0, 1.0, 1.0];
-        let span_scale = |d: &GridDeformation, r: u32, a: usize| {
-            let (first, last) = span_of(d, mesh, &labels, r, a);
-            d.scales[a][first..=last].iter().sum::<f64>() / (last + 1 - first) as f64
-        };
-        let squeezed = span_scale(&plain, 1, 1);
+        let (plain, kept, size) = plain_and_kept(mesh, &labels, Vector3::new(2.0, 1.0, 1.0));
+        let squeezed = span_scale(&plain, mesh, &labels, 1, 1);
         assert!(squeezed < 0.97, "plain grid, patch 1 along y: {squeezed}");
         assert!((kept.size() - size).norm() < 1e-9);
         for r in 1..=2 {
-            for (a, h) in homogeneous.iter().enumerate() {
-                let s = span_scale(&kept, r, a);
+            for (a, h) in [2.0, 1.0, 1.0].iter().enumerate() {
+                let s = span_scale(&kept, mesh, &labels, r, a);
                 assert!(s > h - 1e-9, "region {r} axis {a}: {s}");
             }
         }
@@ -605,14 +620,9 @@ mod tests {
         let thread = gt::threaded_cylinder(&gt::ThreadedCylinderConfig::default());
         let mesh = &thread.base_mesh;
         let labels: Vec<u32> = thread.labels.iter().map(|&l| l as u32).collect();
-        let (_, graph) = prepare(mesh).unwrap();
-        let normals = mesh.vertex_normals();
-        let curv = principal_curvatures(mesh, &normals, 2.0 * graph.mean_edge, 6.0);
-        let extent = mesh.bounding_box().unwrap().extent();
-        let size = Vector3::new(extent.x, extent.y, 2.0 * extent.z);
-        let plain = optimise(mesh, &normals, &curv, &size, &cfg).unwrap();
-        let kept = optimise_keeping_regions(mesh, &normals, &curv, &labels, &size, &cfg).unwrap();
-        assert!(span_scale(&plain, 1, 2) > 2.0);
+        let (plain, kept, _) = plain_and_kept(mesh, &labels, Vector3::new(1.0, 1.0, 2.0));
+        let thread_scale = span_scale(&plain, mesh, &labels, 1, 2);
+        assert!(thread_scale > 2.0, "thread along z: {thread_scale}");
         assert_eq!(plain, kept);
     }
 
