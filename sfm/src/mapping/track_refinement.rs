@@ -189,27 +189,26 @@ impl ImagePyramid {
     /// Grey level at photo position `p` (COLMAP's convention) on `level`, bilinear; None
     /// where [`ImagePyramid::sample`] is None (the same area, so both agree on failures).
     fn value(&self, level: usize, p: Vector2<f64>) -> Option<f64> {
+        let (img, x, y, _) = self.level_position(level, p)?;
+        Some(bilinear(img, x, y))
+    }
+
+    /// `level`'s image, photo position `p` (COLMAP's convention) in that level's pixels, and
+    /// the level's pixel size in photo pixels; None unless the bilinear 2x2 cell and a
+    /// half-pixel stencil around it lie inside the image.
+    fn level_position(&self, level: usize, p: Vector2<f64>) -> Option<(&GreyImage, f64, f64, f64)> {
         let img = &self.levels[level];
         let step = f64::from(1u32 << level);
         let (x, y) = ((p.x - 0.5) / step, (p.y - 0.5) / step);
         let inside = |v: f64, n: usize| v >= 1.0 && v <= n as f64 - 2.0;
-        if !inside(x, img.width) || !inside(y, img.height) {
-            return None;
-        }
-        Some(bilinear(img, x, y))
+        (inside(x, img.width) && inside(y, img.height)).then_some((img, x, y, step))
     }
 
     /// Grey level and gradient (per photo pixel) at photo position `p` (COLMAP's convention)
     /// on `level`, bilinear; None outside the area where the 2x2 cell and the gradient's
     /// half-pixel stencil are inside the image.
     fn sample(&self, level: usize, p: Vector2<f64>) -> Option<(f64, Vector2<f64>)> {
-        let img = &self.levels[level];
-        let step = f64::from(1u32 << level);
-        let (x, y) = ((p.x - 0.5) / step, (p.y - 0.5) / step);
-        let inside = |v: f64, n: usize| v >= 1.0 && v <= n as f64 - 2.0;
-        if !inside(x, img.width) || !inside(y, img.height) {
-            return None;
-        }
+        let (img, x, y, step) = self.level_position(level, p)?;
         let value = |x: f64, y: f64| bilinear(img, x, y);
         // Central differences over one level pixel, per photo pixel.
         let gx = (value(x + 0.5, y) - value(x - 0.5, y)) / step;
