@@ -715,10 +715,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_point_one_view_short_is_kept_exactly_where_the_other_views_see_in_front_of_it() {
-        // A and B see a surface at x = 0.5; C and D see, where the surface would be, nothing,
-        // an occluder in front of it (x = 1), or the wall behind it (x = 0).
+    /// Views A, B, C, D from x = 4 towards the origin, their geometry, and each one's depth
+    /// map of the plane x = 0.5 (the surface the fusion tests judge).
+    fn four_views_of_a_surface() -> ([DenseView; 4], Vec<Geometry>, Vec<FusionView>) {
         let views = [
             view(Point3::new(4.0, 0.0, 0.0)),
             view(Point3::new(4.0, 0.5, 0.3)),
@@ -727,6 +726,14 @@ mod tests {
         ];
         let geometry: Vec<Geometry> = views.iter().map(Geometry::of).collect();
         let surface: Vec<FusionView> = views.iter().map(|v| plane_view(v, 0.5)).collect();
+        (views, geometry, surface)
+    }
+
+    #[test]
+    fn a_point_one_view_short_is_kept_exactly_where_the_other_views_see_in_front_of_it() {
+        // A and B see a surface at x = 0.5; C and D see, where the surface would be, nothing,
+        // an occluder in front of it (x = 1), or the wall behind it (x = 0).
+        let (views, geometry, surface) = four_views_of_a_surface();
         let nothing = FusionView {
             map: DepthMap::empty(64, 48),
             rgb: RgbImage::new(64, 48),
@@ -771,14 +778,7 @@ mod tests {
     fn a_point_more_views_look_through_than_agree_with_is_dropped() {
         // Views A and B see a surface at x = 0.5; C and D, from the same side, see the wall
         // x = 0 behind it where the surface would be: they look through A's points.
-        let views = [
-            view(Point3::new(4.0, 0.0, 0.0)),
-            view(Point3::new(4.0, 0.5, 0.3)),
-            view(Point3::new(4.0, -0.5, 0.3)),
-            view(Point3::new(4.0, 0.2, -0.4)),
-        ];
-        let geometry: Vec<Geometry> = views.iter().map(Geometry::of).collect();
-        let surface: Vec<FusionView> = views.iter().map(|v| plane_view(v, 0.5)).collect();
+        let (views, geometry, surface) = four_views_of_a_surface();
         let wall: Vec<FusionView> = views.iter().map(|v| plane_view(v, 0.0)).collect();
         let fuse_a = |c: &FusionView, d: &FusionView, free_space: bool| {
             let cfg = FusionConfig {
